@@ -1,0 +1,16 @@
+# Install and export: consumers use find_package(sdot) and link sdot::sdot.
+include(CMakePackageConfigHelpers)
+install(TARGETS sdot EXPORT sdotTargets
+  ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+  LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+  RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+install(EXPORT sdotTargets NAMESPACE sdot:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/sdot)
+configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/sdotConfig.cmake.in
+  ${PROJECT_BINARY_DIR}/sdotConfig.cmake INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/sdot)
+write_basic_package_version_file(${PROJECT_BINARY_DIR}/sdotConfigVersion.cmake COMPATIBILITY SameMinorVersion)
+install(FILES ${PROJECT_BINARY_DIR}/sdotConfig.cmake ${PROJECT_BINARY_DIR}/sdotConfigVersion.cmake
+  DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/sdot)
+if(SDOT_BUILD_CLI)
+  install(TARGETS sdot_command RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+endif()

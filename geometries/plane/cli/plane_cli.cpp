@@ -1,0 +1,99 @@
+// The sdot command's adapter for the plane: problem fields, SVG picture, benchmark, demo.
+#include <cmath>
+#include <random>
+
+#include "common.hpp"
+#include "registry.hpp"
+#include "sdot/geometries/plane.hpp"
+#include "sdot/solver.hpp"
+
+namespace sdot::cli {
+namespace {
+
+using Point = Plane::Point;
+
+std::vector<Point> to_points(const std::vector<Eigen::VectorXd>& points) {
+  std::vector<Point> result;
+  result.reserve(points.size());
+  for (const auto& p : points) result.emplace_back(p[0], p[1]);
+  return result;
+}
+
+std::string draw(const Plane& plane, std::span<const Point> sites, const Result<Point>& result) {
+  Eigen::Vector2d low = Eigen::Vector2d::Constant(INFINITY), high = -low;
+  for (const auto& v : plane.domain().vertices()) low = low.cwiseMin(v), high = high.cwiseMax(v);
+  const double margin = 0.03 * (high - low).maxCoeff();
+  Svg svg(low.x() - margin, low.y() - margin, high.x() + margin, high.y() + margin);
+  const double stroke = std::clamp(3.0 / std::sqrt(static_cast<double>(sites.size())), 0.2, 1.0);
+  svg.polygon(plane.domain().vertices(), "fill=\"#f4f4f4\" stroke=\"black\" stroke-width=\"1.5\"");
+  for (const auto& cell : result.diagram.cells)
+    if (!cell.empty())
+      svg.polygon(cell.vertices, fmt::format("fill=\"none\" stroke=\"#3060a0\" stroke-width=\"{:.2f}\"", stroke));
+  const double r = dot_radius_px(sites.size());
+  for (const auto& c : result.centroids) svg.circle(c, r * 0.8, "fill=\"#20a040\"");
+  for (const auto& s : sites) svg.circle(s, r, "fill=\"#d03020\"");
+  return svg.str();
+}
+
+SolveOutput solve_plane(const json& problem, const RunContext& context) {
+  check_known_fields(problem, "", {"geometry", "sites", "masses", "domain", "density", "tolerance",
+                                   "max_iterations", "weights", "linear_solver"});
+  if (!problem.contains("sites")) throw InputError("sites", "missing");
+  const auto sites = to_points(read_points(problem["sites"], "sites", 2));
+  if (sites.empty()) throw InputError("sites", "at least one site is needed");
+  Plane plane;
+  if (problem.contains("domain")) {
+    std::vector<Eigen::Vector2d> vertices = to_points(read_points(problem["domain"], "domain", 2));
+    plane = Plane(ConvexPolygon(std::move(vertices), "domain"));
+  }
+  if (problem.contains("density")) {
+    const json& density = problem["density"];
+    check_known_fields(density, "density", {"type"});
+    if (!density.contains("type") || density["type"] != "uniform")
+      throw InputError("density.type", "unknown density type (supported: \"uniform\")");
+  }
+  const Options options = read_options(problem, context.quiet);
+  const auto result = solve(plane, UniformDensity{}, std::span<const Point>(sites), read_masses(problem, sites.size()),
+                            options, read_weights(problem, sites.size()));
+  SolveOutput output;
+  output.result = result_json("plane", result);
+  output.converged = result.summary.converged();
+  if (context.want_svg) output.svg = draw(plane, sites, result);
+  return output;
+}
+
+json bench_plane(const BenchRequest& request) {
+  std::mt19937_64 random(request.seed);
+  std::uniform_real_distribution<double> uniform(0, 1);
+  std::vector<Point> sites(request.n);
+  for (auto& s : sites) s = Point(uniform(random), uniform(random));
+  Options options;
+  options.tolerance = request.tolerance;
+  if (!request.quiet)
+    options.callback = [](const IterationRecord& r) {
+      std::fprintf(stderr, "  iteration %3d  max rel. error %9.3e  step %-9g %8.3f s\n", r.iteration,
+                   r.max_relative_error, r.step, r.elapsed_s);
+    };
+  const Plane plane;
+  const auto result = solve(plane, UniformDensity{}, std::span<const Point>(sites), equal_masses(request.n), options);
+  return bench_json("plane", request.n, result);
+}
+
+json demo_plane() {
+  // 1500 sites clustered towards one corner, masses varying 10× across the square.
+  std::mt19937_64 random(7);
+  std::uniform_real_distribution<double> uniform(0, 1);
+  json sites = json::array(), masses = json::array();
+  for (int i = 0; i < 1500; ++i) {
+    const double x = std::pow(uniform(random), 1.6), y = std::pow(uniform(random), 1.3);
+    sites.push_back({x, y});
+    masses.push_back(1 + 9 * x * y);
+  }
+  return {{"geometry", "plane"}, {"sites", sites}, {"masses", masses}, {"tolerance", 1e-9}};
+}
+
+}  // namespace
+
+void register_plane(Registry& registry) { registry.add("plane", {solve_plane, bench_plane, demo_plane}); }
+
+}  // namespace sdot::cli

@@ -1,0 +1,55 @@
+#pragma once
+/// \file plane.hpp
+/// The Euclidean plane E²: cost c(x, y) = |x − y|²/2, weights ψ with cells argmin_i c(x, y_i) − ψ_i
+/// (power cells), clipped to a convex polygon source domain (default: the unit square).
+
+#include <Eigen/Core>
+#include <span>
+#include <string_view>
+
+#include "sdot/chart_diagram.hpp"
+#include "sdot/density.hpp"
+#include "sdot/diagram.hpp"
+
+namespace sdot {
+
+class Plane {
+public:
+  using Point = Eigen::Vector2d;
+
+  /// The unit square [0, 1]².
+  Plane();
+  explicit Plane(ConvexPolygon domain);
+
+  static constexpr std::string_view name() { return "plane"; }
+  [[nodiscard]] const ConvexPolygon& domain() const { return domain_; }
+
+  [[nodiscard]] static double cost(const Point& x, const Point& y) { return (x - y).squaredNorm() / 2; }
+  /// Throws InputError for a non-finite coordinate or a duplicate site (naming both indices).
+  void validate_sites(std::span<const Point> sites) const;
+  /// ψ_i = (1 − t)|y_i − x₀|²/2: the Voronoi diagram of x₀ + t(y_i − x₀), with x₀ the domain's
+  /// centroid and t ≤ 1 chosen so that all those points lie in the domain; every cell is
+  /// non-empty, also for sites outside the domain.
+  [[nodiscard]] Eigen::VectorXd default_weights(std::span<const Point> sites) const;
+  [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
+
+  /// Exact area, first moment and ∫|x − y|²/2 of a polygon.
+  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site) const;
+  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
+                                               const ScalarField<Point>& rho, int order) const;
+  /// |ab| / |y_i − y_j|.
+  [[nodiscard]] double facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i,
+                                    const Point& site_j, double weight_j) const;
+  /// ∫_{[a,b]} ρ ds / |y_i − y_j|.
+  [[nodiscard]] double facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i,
+                                    const Point& site_j, double weight_j, const ScalarField<Point>& rho,
+                                    int order) const;
+  [[nodiscard]] Point centroid(const CellIntegrals<Point>& integrals) const {
+    return integrals.first_moment / integrals.mass;
+  }
+
+private:
+  ConvexPolygon domain_;
+};
+
+}  // namespace sdot

@@ -1,0 +1,88 @@
+#pragma once
+/// \file chart_diagram.hpp
+/// The one cell builder shared by all geometries (math.md §1).
+///
+/// In every geometry, the Laguerre cell of site i is, in a chart with homogeneous coordinates
+/// X = (v, 1), the set {v : ⟨X, a_i − a_j⟩ ≥ 0 ∀j} for a dual vector a_i ∈ R³. That is the
+/// upper envelope of the affine functions f_i(v) = a_i.x v₁ + a_i.y v₂ + a_i.z, i.e. a planar
+/// power diagram. `build_chart_diagram` computes it, restricted to a convex polygon of the chart.
+/// Geometries only have to supply the dual vectors and map the chart polygons to their points.
+
+#include <Eigen/Core>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "sdot/diagram.hpp"
+
+namespace sdot {
+
+using Vec2 = Eigen::Vector2d;
+using Vec3 = Eigen::Vector3d;
+
+/// A convex polygon in a 2-D chart, vertices counter-clockwise, validated on construction.
+class ConvexPolygon {
+public:
+  ConvexPolygon() = default;
+  /// Validates and stores `vertices` (either orientation; stored counter-clockwise).
+  /// Throws InputError naming `field` (e.g. "domain") when a vertex is not finite, there are
+  /// fewer than 3 vertices, two consecutive vertices coincide, the polygon is not convex, or
+  /// its area is zero.
+  explicit ConvexPolygon(std::vector<Vec2> vertices, const std::string& field = "domain");
+
+  /// Axis-aligned rectangle [x0, x1] × [y0, y1].
+  static ConvexPolygon rectangle(double x0, double y0, double x1, double y1);
+
+  [[nodiscard]] const std::vector<Vec2>& vertices() const { return vertices_; }
+  [[nodiscard]] double area() const;
+  [[nodiscard]] Vec2 centroid() const;
+  /// True when `p` lies inside or on the boundary (up to a relative slack).
+  [[nodiscard]] bool contains(const Vec2& p, double slack = 0) const;
+  /// Largest distance of a vertex from the origin.
+  [[nodiscard]] double radius() const;
+
+private:
+  std::vector<Vec2> vertices_;
+};
+
+/// A cell in chart coordinates (see `Cell`).
+using ChartCell = Cell<Vec2>;
+
+/// Clips `cell` with the half-plane {v : n·v + offset ≥ 0}; the new edge gets `label`.
+void clip(ChartCell& cell, const Vec2& normal, double offset, int label);
+
+/// Neighbour candidates for a set of affine functions f_i(v) = a_i·(v, 1), in CSR form:
+/// the neighbours of site i are `neighbors[offsets[i] .. offsets[i+1])`. Always a superset of
+/// the true Laguerre neighbours inside any polygon, computed from the regular triangulation
+/// (Qhull, lower hull of the lifted points (a_i.xy / 2, −a_i.z)). Indices ≥ the number of
+/// sites are internal helper functions that never win on the domain; builders skip them.
+struct Adjacency {
+  std::vector<int> offsets;
+  std::vector<int> neighbors;
+  [[nodiscard]] std::span<const int> of(std::size_t i) const {
+    return {neighbors.data() + offsets[i], neighbors.data() + offsets[i + 1]};
+  }
+};
+
+/// Upper envelope of f_i(v) = a_i·(v, 1) over `domain`: cell i = {v ∈ domain : f_i ≥ f_j ∀j}.
+/// Boundary edges are labelled `boundary_label(k)` for domain edge k.
+std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain);
+
+/// Same, with the neighbour candidates already known (e.g. from a 3-D hull).
+std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,
+                                           const Adjacency& candidates);
+
+/// Neighbour candidates of the affine functions' upper envelope in the chart plane.
+Adjacency chart_adjacency(std::span<const Vec3> dual, const ConvexPolygon& domain);
+
+/// The 3-D convex hull of `points` (Qhull, triangulated): vertex adjacency along hull edges,
+/// which points are hull vertices, and the largest facet offset (< 0 iff the origin is strictly
+/// inside the hull). Throws sdot::Error when the hull is degenerate (all points coplanar).
+struct Hull3 {
+  Adjacency edges;
+  std::vector<char> is_vertex;
+  double max_facet_offset = 0;
+};
+Hull3 convex_hull_3d(std::span<const Vec3> points);
+
+}  // namespace sdot

@@ -1,0 +1,72 @@
+#pragma once
+/// \file density.hpp
+/// Source densities. A density is integrated over a cell (mass, first moment, cost) and along a
+/// cell edge (the Hessian weight ∫_Γ ρ / |∇_x(c(·,y_i) − c(·,y_j))| ds) using only the
+/// geometry's integration primitives, so every geometry gets every density for free.
+///
+/// A density describes itself as pieces with a local function: it splits a cell (or an edge)
+/// into pieces and hands each piece to the geometry with the local form of ρ — a constant
+/// (integrated exactly) or a function (integrated by quadrature). Data-driven densities
+/// (piecewise linear on a mesh, images) are further models of `Density`.
+
+#include <concepts>
+#include <cstddef>
+#include <functional>
+
+#include "sdot/diagram.hpp"
+
+namespace sdot {
+
+/// A scalar function on the points of a geometry.
+template <class Point>
+using ScalarField = std::function<double(const Point&)>;
+
+/// ρ ≡ 1 with respect to the geometry's own area measure (intrinsic area on S² and H²).
+/// Integrated exactly by every geometry.
+struct UniformDensity {
+  template <class G>
+  [[nodiscard]] CellIntegrals<typename G::Point> integrate_cell(const G& geometry,
+                                                               const Cell<typename G::Point>& cell,
+                                                               const typename G::Point& site) const {
+    return geometry.integrate(cell, site);
+  }
+  template <class G>
+  [[nodiscard]] double facet_weight(const G& geometry, const typename G::Point& a,
+                                    const typename G::Point& b, const typename G::Point& site_i,
+                                    double weight_i, const typename G::Point& site_j,
+                                    double weight_j) const {
+    return geometry.facet_weight(a, b, site_i, weight_i, site_j, weight_j);
+  }
+};
+
+/// ρ(x) given by a function (ρ ≥ 0, finite), integrated by quadrature: a collapsed Gauss rule
+/// with `quadrature_order`² points per triangle of a fan of each cell, and Gauss–Legendre with
+/// `quadrature_order` points along each edge. The function is called concurrently from
+/// several threads.
+template <class Point>
+struct FunctionDensity {
+  ScalarField<Point> rho;
+  int quadrature_order = 8;
+
+  template <class G>
+  [[nodiscard]] CellIntegrals<Point> integrate_cell(const G& geometry, const Cell<Point>& cell,
+                                                    const Point& site) const {
+    return geometry.integrate(cell, site, rho, quadrature_order);
+  }
+  template <class G>
+  [[nodiscard]] double facet_weight(const G& geometry, const Point& a, const Point& b,
+                                    const Point& site_i, double weight_i, const Point& site_j,
+                                    double weight_j) const {
+    return geometry.facet_weight(a, b, site_i, weight_i, site_j, weight_j, rho, quadrature_order);
+  }
+};
+
+/// A source density for geometry G: it integrates a cell and an edge of a cell.
+template <class D, class G>
+concept Density = requires(const D& density, const G& geometry, const Cell<typename G::Point>& cell,
+                           const typename G::Point& point, double weight) {
+  { density.integrate_cell(geometry, cell, point) } -> std::same_as<CellIntegrals<typename G::Point>>;
+  { density.facet_weight(geometry, point, point, point, weight, point, weight) } -> std::convertible_to<double>;
+};
+
+}  // namespace sdot

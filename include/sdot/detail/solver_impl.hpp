@@ -1,0 +1,288 @@
+#pragma once
+// Implementation of solver.hpp (templates).
+
+#include <Eigen/SparseCore>
+
+namespace sdot::detail {
+
+using Clock = std::chrono::steady_clock;
+inline double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+struct MassError {
+  double max_relative = 0, rms_relative = 0, l2 = 0;
+  Eigen::Index worst = 0;
+};
+
+inline MassError mass_error(const Eigen::VectorXd& masses, const Eigen::VectorXd& targets) {
+  MassError e;
+  double sum_sq = 0;
+  for (Eigen::Index i = 0; i < masses.size(); ++i) {
+    const double relative = std::abs(masses[i] - targets[i]) / targets[i];
+    if (relative > e.max_relative || std::isnan(relative)) e.max_relative = relative, e.worst = i;
+    sum_sq += relative * relative;
+    e.l2 += (masses[i] - targets[i]) * (masses[i] - targets[i]);
+  }
+  e.rms_relative = std::sqrt(sum_sq / static_cast<double>(std::max<Eigen::Index>(masses.size(), 1)));
+  e.l2 = std::sqrt(e.l2);
+  return e;
+}
+
+/// Hessian of E with the gauge fixed: H + s e₀e₀ᵀ. With Σ rhs = 0 the solution has d₀ = 0
+/// and solves H d = rhs, so this pins w₀ without building a reduced matrix.
+inline SparseMatrix assemble_hessian(Eigen::Index n, const std::vector<Eigen::Triplet<double>>& facet_weights) {
+  std::vector<Eigen::Triplet<double>> entries;
+  entries.reserve(4 * facet_weights.size() + 1);
+  double largest = 0;
+  for (const auto& t : facet_weights) {
+    entries.emplace_back(t.row(), t.col(), -t.value());
+    entries.emplace_back(t.col(), t.row(), -t.value());
+    entries.emplace_back(t.row(), t.row(), t.value());
+    entries.emplace_back(t.col(), t.col(), t.value());
+    largest = std::max(largest, std::abs(t.value()));
+  }
+  entries.emplace_back(0, 0, largest > 0 ? largest : 1.0);
+  SparseMatrix hessian(n, n);
+  hessian.setFromTriplets(entries.begin(), entries.end());
+  return hessian;
+}
+
+template <class S>
+class NewtonLinearSolver {
+public:
+  explicit NewtonLinearSolver(const Options& options) {
+    if constexpr (requires(S s) { s.setTolerance(1.0); }) solver_.setTolerance(options.cg_tolerance);
+  }
+  /// Solves H d = rhs; false when the factorisation or the iteration failed.
+  bool solve(const SparseMatrix& hessian, const Eigen::VectorXd& rhs, Eigen::VectorXd& direction) {
+    if constexpr (FactorizingLinearSolver<S>) {
+      if (!same_pattern(hessian)) {
+        solver_.analyzePattern(hessian);
+        outer_.assign(hessian.outerIndexPtr(), hessian.outerIndexPtr() + hessian.outerSize() + 1);
+        inner_.assign(hessian.innerIndexPtr(), hessian.innerIndexPtr() + hessian.nonZeros());
+      }
+      solver_.factorize(hessian);
+    } else {
+      solver_.compute(hessian);
+    }
+    if (solver_.info() != Eigen::Success) return false;
+    direction = solver_.solve(rhs);
+    return solver_.info() == Eigen::Success && direction.allFinite();
+  }
+  /// How many symbolic analyses were done (pattern reuse is visible in tests).
+  [[nodiscard]] int analyses() const { return analyses_; }
+
+private:
+  bool same_pattern(const SparseMatrix& m) {
+    const bool same = static_cast<Eigen::Index>(outer_.size()) == m.outerSize() + 1 &&
+                      static_cast<Eigen::Index>(inner_.size()) == m.nonZeros() &&
+                      std::equal(outer_.begin(), outer_.end(), m.outerIndexPtr()) &&
+                      std::equal(inner_.begin(), inner_.end(), m.innerIndexPtr());
+    if (!same) ++analyses_;
+    return same;
+  }
+  S solver_;
+  std::vector<int> outer_, inner_;
+  int analyses_ = 0;
+};
+
+inline void validate_targets(const Eigen::VectorXd& targets, std::size_t site_count) {
+  if (static_cast<std::size_t>(targets.size()) != site_count)
+    throw InputError("masses", "there are " + std::to_string(targets.size()) + " masses for " +
+                                   std::to_string(site_count) + " sites");
+  for (Eigen::Index i = 0; i < targets.size(); ++i)
+    if (!(std::isfinite(targets[i]) && targets[i] > 0))
+      throw InputError(indexed("masses", static_cast<std::size_t>(i)),
+                       "must be a positive finite number, got " + std::to_string(targets[i]));
+}
+
+}  // namespace sdot::detail
+
+template <sdot::Geometry G, sdot::Density<G> D>
+sdot::Evaluation<typename G::Point> sdot::evaluate(const G& geometry, const D& density,
+                                                   std::span<const typename G::Point> sites,
+                                                   const Eigen::VectorXd& weights, bool with_hessian,
+                                                   Timings* timings) {
+  using Point = typename G::Point;
+  auto start = detail::Clock::now();
+  Evaluation<Point> result;
+  result.diagram = geometry.build_diagram(sites, weights);
+  if (timings) timings->diagram_s += detail::seconds_since(start);
+  start = detail::Clock::now();
+  const auto n = static_cast<std::ptrdiff_t>(sites.size());
+  result.integrals.resize(sites.size());
+  result.masses.resize(n);
+#pragma omp parallel
+  {
+    std::vector<Eigen::Triplet<double>> local;
+#pragma omp for schedule(dynamic, 256) nowait
+    for (std::ptrdiff_t i = 0; i < n; ++i) {
+      const auto& cell = result.diagram.cells[i];
+      if (cell.empty()) {
+        result.integrals[i] = CellIntegrals<Point>{};
+        result.masses[i] = 0;
+        continue;
+      }
+      result.integrals[i] = density.integrate_cell(geometry, cell, sites[i]);
+      result.masses[i] = result.integrals[i].mass;
+      if (!with_hessian) continue;
+      for (std::size_t k = 0; k < cell.size(); ++k) {
+        const int j = cell.neighbors[k];
+        if (is_boundary(j) || j <= i) continue;  // each pair once, from the lower index
+        const Point& a = cell.vertices[k];
+        const Point& b = cell.vertices[(k + 1) % cell.size()];
+        const double w = density.facet_weight(geometry, a, b, sites[i], weights[i], sites[j], weights[j]);
+        if (w != 0) local.emplace_back(static_cast<int>(i), j, w);
+      }
+    }
+#pragma omp critical
+    result.facet_weights.insert(result.facet_weights.end(), local.begin(), local.end());
+  }
+  if (timings) timings->assembly_s += detail::seconds_since(start);
+  return result;
+}
+
+template <sdot::LinearSolver S, sdot::Geometry G, sdot::Density<G> D>
+sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& density,
+                                                 std::span<const typename G::Point> sites,
+                                                 const Eigen::VectorXd& target_masses,
+                                                 const Options& options,
+                                                 std::optional<Eigen::VectorXd> initial_weights) {
+  using Point = typename G::Point;
+  const auto start = detail::Clock::now();
+  options.validate();
+  if (sites.empty()) throw InputError("sites", "at least one site is needed");
+  geometry.validate_sites(sites);
+  detail::validate_targets(target_masses, sites.size());
+  const auto n = static_cast<Eigen::Index>(sites.size());
+
+  Result<Point> result;
+  Summary& summary = result.summary;
+  Eigen::VectorXd weights;
+  const bool user_weights = initial_weights.has_value();
+  if (user_weights) {
+    weights = std::move(*initial_weights);
+    if (weights.size() != n)
+      throw InputError("weights", "there are " + std::to_string(weights.size()) + " weights for " +
+                                      std::to_string(n) + " sites");
+    for (Eigen::Index i = 0; i < n; ++i)
+      if (!std::isfinite(weights[i]))
+        throw InputError(indexed("weights", static_cast<std::size_t>(i)), "is not finite");
+  } else {
+    weights = geometry.default_weights(sites);
+  }
+  weights.array() -= weights.mean();
+
+  Evaluation<Point> current = evaluate(geometry, density, sites, weights, true, &summary.timings);
+  summary.source_mass = current.masses.sum();
+  Eigen::VectorXd targets = target_masses;
+  const double target_sum = targets.sum();
+  summary.mass_scale = summary.source_mass / target_sum;
+  if (!options.rescale_masses && std::abs(summary.mass_scale - 1) > options.mass_sum_tolerance)
+    throw InputError("masses", "they sum to " + std::to_string(target_sum) + " but the source mass is " +
+                                   std::to_string(summary.source_mass) +
+                                   " (enable options.rescale_masses to rescale them)");
+  targets *= summary.mass_scale;
+
+  Eigen::Index first_empty = -1;
+  for (Eigen::Index i = 0; i < n && first_empty < 0; ++i)
+    if (!(current.masses[i] > 0)) first_empty = i;
+  auto finish = [&](Status status, std::string message) {
+    summary.status = status;
+    summary.message = std::move(message);
+    result.weights = weights;
+    result.masses = current.masses;
+    result.target_masses = targets;
+    result.transport_cost = 0;
+    result.centroids.resize(sites.size());
+    for (Eigen::Index i = 0; i < n; ++i) {
+      result.transport_cost += current.integrals[i].cost;
+      result.centroids[i] = current.masses[i] > 0 ? Point(geometry.centroid(current.integrals[i])) : sites[i];
+    }
+    result.diagram = std::move(current.diagram);
+    summary.timings.total_s = detail::seconds_since(start);
+    return result;
+  };
+  if (first_empty >= 0) {
+    if (user_weights)
+      throw InputError(indexed("weights", static_cast<std::size_t>(first_empty)),
+                       "the initial weights leave the cell of site " + std::to_string(first_empty) +
+                           " empty; the damped Newton method needs every cell non-empty at the start");
+    return finish(Status::line_search_failure,
+                  "the cell of site " + std::to_string(first_empty) + " is empty at the default start");
+  }
+
+  const double epsilon0 = 0.5 * std::min(current.masses.minCoeff(), targets.minCoeff());
+  detail::NewtonLinearSolver<S> linear(options);
+  auto error = detail::mass_error(current.masses, targets);
+  auto record = [&](int iteration, double step) {
+    IterationRecord r{iteration, error.max_relative, error.rms_relative, step, detail::seconds_since(start)};
+    summary.history.push_back(r);
+    summary.iterations = iteration;
+    summary.max_relative_error = error.max_relative;
+    summary.rms_relative_error = error.rms_relative;
+    if (options.callback) options.callback(r);
+  };
+  record(0, 0);
+
+  for (int iteration = 1;; ++iteration) {
+    if (error.max_relative <= options.tolerance)
+      return finish(Status::converged, "converged: max relative mass error " + std::to_string(error.max_relative) +
+                                           " <= " + std::to_string(options.tolerance));
+    if (iteration > options.max_iterations)
+      return finish(Status::iteration_limit,
+                    "iteration limit (" + std::to_string(options.max_iterations) +
+                        ") reached with max relative mass error " + std::to_string(error.max_relative) +
+                        " at site " + std::to_string(error.worst));
+    auto linear_start = detail::Clock::now();
+    const SparseMatrix hessian = detail::assemble_hessian(n, current.facet_weights);
+    Eigen::VectorXd rhs = targets - current.masses;
+    rhs[0] -= rhs.sum();  // exact gauge consistency: Σ rhs = 0
+    Eigen::VectorXd direction;
+    const bool solved = linear.solve(hessian, rhs, direction);
+    summary.timings.linear_solve_s += detail::seconds_since(linear_start);
+    if (!solved)
+      return finish(Status::linear_solve_failure,
+                    "the Newton system could not be solved (is the cell adjacency graph disconnected?)");
+
+    bool accepted = false;
+    double step = 1;
+    for (int halving = 0; halving <= options.max_step_halvings; ++halving, step /= 2) {
+      Eigen::VectorXd trial_weights = weights + step * direction;
+      trial_weights.array() -= trial_weights.mean();
+      Evaluation<Point> trial = evaluate(geometry, density, sites, trial_weights, true, &summary.timings);
+      if (trial.masses.minCoeff() < epsilon0) continue;
+      const auto trial_error = detail::mass_error(trial.masses, targets);
+      if (trial_error.l2 <= (1 - step / 2) * error.l2) {
+        weights = std::move(trial_weights);
+        current = std::move(trial);
+        error = trial_error;
+        accepted = true;
+        break;
+      }
+    }
+    if (!accepted)
+      return finish(Status::line_search_failure,
+                    "no step length decreased the mass error after " + std::to_string(options.max_step_halvings) +
+                        " halvings; the max relative mass error " + std::to_string(error.max_relative) +
+                        " is at the precision floor of this problem (raise the tolerance)");
+    record(iteration, step);
+  }
+}
+
+template <sdot::Geometry G, sdot::Density<G> D>
+sdot::Result<typename G::Point> sdot::solve(const G& geometry, const D& density,
+                                            std::span<const typename G::Point> sites,
+                                            const Eigen::VectorXd& target_masses, const Options& options,
+                                            std::optional<Eigen::VectorXd> initial_weights) {
+  switch (options.linear_solver) {
+    case LinearSolverKind::conjugate_gradient:
+      return solve_with<ConjugateGradientSolver>(geometry, density, sites, target_masses, options,
+                                                 std::move(initial_weights));
+    case LinearSolverKind::ldlt:
+    default:
+      return solve_with<DefaultLinearSolver>(geometry, density, sites, target_masses, options,
+                                             std::move(initial_weights));
+  }
+}

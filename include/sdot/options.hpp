@@ -1,0 +1,78 @@
+#pragma once
+/// \file options.hpp
+/// Options of the damped-Newton solver and its outcome (`Summary`).
+
+#include <functional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "sdot/linear_solver.hpp"
+
+namespace sdot {
+
+/// What the solver reports after each Newton iteration (and once for the start).
+struct IterationRecord {
+  int iteration = 0;                  ///< 0 for the start
+  double max_relative_error = 0;      ///< max_i |μ(W_i) − ν_i| / ν_i
+  double rms_relative_error = 0;      ///< sqrt(mean_i ((μ(W_i) − ν_i) / ν_i)²)
+  double step = 0;                    ///< accepted step length 2^−ℓ (0 at the start)
+  double elapsed_s = 0;               ///< wall time since the solver started
+};
+
+struct Options {
+  /// Stop when the maximum relative mass error max_i |μ(W_i) − ν_i|/ν_i ≤ tolerance.
+  double tolerance = 1e-9;
+  /// Newton iterations at most; reaching it is Status::iteration_limit, not an error.
+  int max_iterations = 100;
+  /// Step halvings per line search at most; running out is Status::line_search_failure.
+  int max_step_halvings = 40;
+  LinearSolverKind linear_solver = LinearSolverKind::ldlt;
+  /// Relative residual of the conjugate-gradient solve (only for conjugate_gradient).
+  double cg_tolerance = 1e-12;
+  /// When the target masses do not sum to the source mass: rescale them to it (true, the
+  /// factor is reported in Summary::mass_scale) or reject them with an InputError (false)
+  /// when they differ by more than `mass_sum_tolerance` relatively.
+  bool rescale_masses = true;
+  double mass_sum_tolerance = 1e-9;
+  /// Called after each iteration (progress output); may be empty.
+  std::function<void(const IterationRecord&)> callback;
+
+  /// Empty when valid, else a message naming the field (`options.tolerance: must be > 0`).
+  [[nodiscard]] std::string validation_error() const;
+  /// Throws InputError when invalid.
+  void validate() const;
+};
+
+enum class Status {
+  converged,            ///< the tolerance was reached
+  iteration_limit,      ///< max_iterations were used up
+  line_search_failure,  ///< no step length satisfied the KMT conditions (precision floor)
+  linear_solve_failure, ///< the Newton system could not be solved
+};
+
+std::string_view to_string(Status status);
+
+struct Timings {
+  double diagram_s = 0;       ///< building Laguerre diagrams
+  double assembly_s = 0;      ///< integrating masses, moments, costs and Hessian entries
+  double linear_solve_s = 0;  ///< factorising and solving the Newton systems
+  double total_s = 0;
+};
+
+struct Summary {
+  Status status = Status::iteration_limit;
+  std::string message;
+  int iterations = 0;
+  double max_relative_error = 0;
+  double rms_relative_error = 0;
+  /// Factor applied to the target masses so that they sum to the source mass (1 if none).
+  double mass_scale = 1;
+  double source_mass = 0;
+  std::vector<IterationRecord> history;
+  Timings timings;
+
+  [[nodiscard]] bool converged() const { return status == Status::converged; }
+};
+
+}  // namespace sdot

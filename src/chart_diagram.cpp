@@ -1,0 +1,299 @@
+// The shared cell builder: Qhull for neighbour candidates, half-plane clipping for the cells.
+#include "sdot/chart_diagram.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+
+#include "sdot/error.hpp"
+
+extern "C" {
+#include <libqhull_r/qhull_ra.h>
+}
+
+namespace sdot {
+namespace {
+
+double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
+
+// Runs Qhull on 3-D points and calls `visit(facet)` for each facet; errors become sdot::Error.
+template <class Visit>
+void run_qhull(std::span<const Vec3> points, Visit&& visit) {
+  std::vector<coordT> coords(points.size() * 3);
+  for (std::size_t i = 0; i < points.size(); ++i)
+    for (int d = 0; d < 3; ++d) coords[3 * i + d] = points[i][d];
+
+  char* message = nullptr;
+  std::size_t message_size = 0;
+  FILE* errfile = open_memstream(&message, &message_size);
+  qhT qh_storage;
+  qhT* qh = &qh_storage;
+  qh_zero(qh, errfile);
+  char flags[] = "qhull Qt";
+  const int exit_code = qh_new_qhull(qh, 3, static_cast<int>(points.size()), coords.data(), False,
+                                     flags, nullptr, errfile);
+  std::string error;
+  if (exit_code == 0) {
+    facetT* facet = nullptr;
+    FORALLfacets { visit(qh, facet); }
+  }
+  qh_freeqhull(qh, !qh_ALL);
+  int curlong = 0, totlong = 0;
+  qh_memfreeshort(qh, &curlong, &totlong);
+  std::fclose(errfile);
+  if (exit_code != 0) error.assign(message, message_size);
+  std::free(message);
+  if (exit_code != 0) {
+    const auto end = error.find('\n');
+    throw Error("convex hull failed (Qhull error " + std::to_string(exit_code) +
+                "): " + error.substr(0, end));
+  }
+}
+
+// Turns per-facet vertex triples into CSR adjacency (sorted, unique) for `count` points.
+Adjacency triangles_to_adjacency(const std::vector<std::array<int, 3>>& triangles, std::size_t count) {
+  Adjacency adjacency;
+  adjacency.offsets.assign(count + 1, 0);
+  for (const auto& t : triangles)
+    for (int v : t) adjacency.offsets[v + 1] += 2;
+  for (std::size_t i = 0; i < count; ++i) adjacency.offsets[i + 1] += adjacency.offsets[i];
+  adjacency.neighbors.resize(adjacency.offsets[count]);
+  std::vector<int> fill(adjacency.offsets.begin(), adjacency.offsets.end() - 1);
+  for (const auto& t : triangles)
+    for (int k = 0; k < 3; ++k) {
+      const int a = t[k], b = t[(k + 1) % 3];
+      adjacency.neighbors[fill[a]++] = b;
+      adjacency.neighbors[fill[b]++] = a;
+    }
+  // Sort and de-duplicate each list in place, then compact.
+  std::size_t write = 0;
+  int begin = adjacency.offsets[0];
+  for (std::size_t i = 0; i < count; ++i) {
+    const int end = adjacency.offsets[i + 1];
+    auto first = adjacency.neighbors.begin() + begin, last = adjacency.neighbors.begin() + end;
+    std::sort(first, last);
+    last = std::unique(first, last);
+    adjacency.offsets[i] = static_cast<int>(write);
+    for (auto it = first; it != last; ++it) adjacency.neighbors[write++] = *it;
+    begin = end;
+  }
+  adjacency.offsets[count] = static_cast<int>(write);
+  adjacency.neighbors.resize(write);
+  return adjacency;
+}
+
+}  // namespace
+
+ConvexPolygon::ConvexPolygon(std::vector<Vec2> vertices, const std::string& field)
+    : vertices_(std::move(vertices)) {
+  const std::size_t n = vertices_.size();
+  if (n < 3) throw InputError(field, "a polygon needs at least 3 vertices, got " + std::to_string(n));
+  for (std::size_t i = 0; i < n; ++i)
+    if (!vertices_[i].allFinite()) throw InputError(indexed(field, i), "vertex is not finite");
+  double scale = 0;
+  for (const auto& v : vertices_) scale = std::max(scale, v.cwiseAbs().maxCoeff());
+  for (std::size_t i = 0; i < n; ++i)
+    if ((vertices_[i] - vertices_[(i + 1) % n]).norm() <= 1e-14 * std::max(scale, 1.0))
+      throw InputError(indexed(field, (i + 1) % n), "vertex coincides with the previous one");
+  if (area() < 0) std::reverse(vertices_.begin(), vertices_.end());
+  const double a = area();
+  if (!(a > 1e-14 * std::max(scale * scale, 1e-300)))
+    throw InputError(field, "polygon is degenerate (zero area)");
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec2& p = vertices_[(i + n - 1) % n];
+    const Vec2& q = vertices_[i];
+    const Vec2& r = vertices_[(i + 1) % n];
+    const double turn = cross(q - p, r - q);
+    if (turn < -1e-12 * (q - p).norm() * (r - q).norm())
+      throw InputError(indexed(field, i), "polygon is not convex at this vertex");
+  }
+}
+
+ConvexPolygon ConvexPolygon::rectangle(double x0, double y0, double x1, double y1) {
+  return ConvexPolygon({{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}});
+}
+
+double ConvexPolygon::area() const {
+  double twice = 0;
+  for (std::size_t i = 0; i < vertices_.size(); ++i)
+    twice += cross(vertices_[i] - vertices_[0], vertices_[(i + 1) % vertices_.size()] - vertices_[0]);
+  return twice / 2;
+}
+
+Vec2 ConvexPolygon::centroid() const {
+  Vec2 moment = Vec2::Zero();
+  double twice = 0;
+  const Vec2& o = vertices_[0];
+  for (std::size_t i = 1; i + 1 < vertices_.size(); ++i) {
+    const double c = cross(vertices_[i] - o, vertices_[i + 1] - o);
+    twice += c;
+    moment += c * (vertices_[i] + vertices_[i + 1] - 2 * o) / 3;
+  }
+  return o + moment / twice;
+}
+
+bool ConvexPolygon::contains(const Vec2& p, double slack) const {
+  for (std::size_t i = 0; i < vertices_.size(); ++i) {
+    const Vec2& a = vertices_[i];
+    const Vec2& b = vertices_[(i + 1) % vertices_.size()];
+    if (cross(b - a, p - a) < -slack * (b - a).norm()) return false;
+  }
+  return true;
+}
+
+double ConvexPolygon::radius() const {
+  double r = 0;
+  for (const auto& v : vertices_) r = std::max(r, v.norm());
+  return r;
+}
+
+void clip(ChartCell& cell, const Vec2& normal, double offset, int label) {
+  const std::size_t n = cell.vertices.size();
+  if (n == 0) return;
+  thread_local std::vector<double> side;
+  side.resize(n);
+  bool all_inside = true, all_outside = true;
+  for (std::size_t k = 0; k < n; ++k) {
+    side[k] = normal.dot(cell.vertices[k]) + offset;
+    all_inside = all_inside && side[k] >= 0;
+    all_outside = all_outside && side[k] < 0;
+  }
+  if (all_inside) return;
+  if (all_outside) {
+    cell.vertices.clear();
+    cell.neighbors.clear();
+    return;
+  }
+  thread_local ChartCell out;
+  out.vertices.clear();
+  out.neighbors.clear();
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t next = (k + 1) % n;
+    const double s = side[k], t = side[next];
+    const Vec2& p = cell.vertices[k];
+    const Vec2& q = cell.vertices[next];
+    if (s >= 0) {
+      if (t >= 0) {
+        out.vertices.push_back(p);
+        out.neighbors.push_back(cell.neighbors[k]);
+      } else if (s == 0) {
+        out.vertices.push_back(p);
+        out.neighbors.push_back(label);
+      } else {
+        out.vertices.push_back(p);
+        out.neighbors.push_back(cell.neighbors[k]);
+        out.vertices.push_back(p + (s / (s - t)) * (q - p));
+        out.neighbors.push_back(label);
+      }
+    } else if (t > 0) {
+      out.vertices.push_back(p + (s / (s - t)) * (q - p));
+      out.neighbors.push_back(cell.neighbors[k]);
+    }
+  }
+  if (out.vertices.size() < 3) {
+    cell.vertices.clear();
+    cell.neighbors.clear();
+    return;
+  }
+  std::swap(cell.vertices, out.vertices);
+  std::swap(cell.neighbors, out.neighbors);
+}
+
+Adjacency chart_adjacency(std::span<const Vec3> dual, const ConvexPolygon& domain) {
+  const std::size_t n = dual.size();
+  // Lifted points of the regular triangulation; their lower hull is the triangulation.
+  std::vector<Vec3> lifted(n + 4);
+  Vec2 center = Vec2::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    lifted[i] = Vec3(dual[i].x() / 2, dual[i].y() / 2, -dual[i].z());
+    center += lifted[i].head<2>();
+  }
+  center /= static_cast<double>(std::max<std::size_t>(n, 1));
+  double spread = 0;
+  for (std::size_t i = 0; i < n; ++i) spread = std::max(spread, (lifted[i].head<2>() - center).norm());
+  // Four dummy functions around the cloud make the hull full-dimensional whatever the sites
+  // (one site, collinear sites); they lie below the envelope on the domain, so never win there.
+  double lower_bound = INFINITY;  // ≤ max_i f_i on the domain
+  for (const auto& v : domain.vertices()) lower_bound = std::min(lower_bound, dual[0].head<2>().dot(v) + dual[0].z());
+  const double radius = 2 * spread + 1e-3 * (1 + center.norm()) + 1;
+  const Vec2 corners[4] = {{1, 1}, {-1, 1}, {-1, -1}, {1, -1}};
+  for (int k = 0; k < 4; ++k) {
+    const Vec2 slope = 2 * (center + radius * corners[k]);
+    double highest = -INFINITY;
+    for (const auto& v : domain.vertices()) highest = std::max(highest, slope.dot(v));
+    const double margin = 1 + std::abs(lower_bound) + std::abs(highest);
+    const double offset = lower_bound - highest - margin;
+    lifted[n + k] = Vec3(slope.x() / 2, slope.y() / 2, -offset);
+  }
+  std::vector<std::array<int, 3>> triangles;
+  triangles.reserve(2 * n + 8);
+  run_qhull(lifted, [&](qhT* qh, facetT* facet) {
+    if (facet->normal[2] >= 0) return;  // only the lower hull is the triangulation
+    std::array<int, 3> t{};
+    int count = 0;
+    vertexT *vertex = nullptr, **vertexp = nullptr;
+    FOREACHvertex_(facet->vertices) {
+      if (count < 3) t[count] = qh_pointid(qh, vertex->point);
+      ++count;
+    }
+    if (count == 3) triangles.push_back(t);
+  });
+  // Indices >= n are the dummies; they are kept so that a site whose only Laguerre neighbours
+  // are dummies (it covers the whole domain) still has candidates and is not taken as empty.
+  return triangles_to_adjacency(triangles, n + 4);
+}
+
+std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,
+                                           const Adjacency& candidates) {
+  const std::size_t n = dual.size();
+  std::vector<ChartCell> cells(n);
+  const auto& boundary = domain.vertices();
+  // A site that is no vertex of the lower hull has no candidates and an empty cell.
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto neighbors = candidates.of(i);
+    if (neighbors.empty()) continue;
+    ChartCell& cell = cells[i];
+    cell.vertices.assign(boundary.begin(), boundary.end());
+    cell.neighbors.resize(boundary.size());
+    for (std::size_t k = 0; k < boundary.size(); ++k) cell.neighbors[k] = boundary_label(static_cast<int>(k));
+    for (int j : neighbors) {
+      if (j >= static_cast<int>(n)) continue;  // a dummy: below the envelope on the domain
+      const Vec3 difference = dual[i] - dual[j];
+      clip(cell, difference.head<2>(), difference.z(), j);
+      if (cell.vertices.empty()) break;
+    }
+  }
+  return cells;
+}
+
+std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain) {
+  if (dual.empty()) return {};
+  return build_chart_diagram(dual, domain, chart_adjacency(dual, domain));
+}
+
+Hull3 convex_hull_3d(std::span<const Vec3> points) {
+  Hull3 hull;
+  hull.is_vertex.assign(points.size(), 0);
+  hull.max_facet_offset = -INFINITY;
+  std::vector<std::array<int, 3>> triangles;
+  triangles.reserve(2 * points.size());
+  run_qhull(points, [&](qhT* qh, facetT* facet) {
+    hull.max_facet_offset = std::max(hull.max_facet_offset, facet->offset);
+    std::array<int, 3> t{};
+    int count = 0;
+    vertexT *vertex = nullptr, **vertexp = nullptr;
+    FOREACHvertex_(facet->vertices) {
+      const int id = qh_pointid(qh, vertex->point);
+      hull.is_vertex[id] = 1;
+      if (count < 3) t[count] = id;
+      ++count;
+    }
+    if (count == 3) triangles.push_back(t);
+  });
+  hull.edges = triangles_to_adjacency(triangles, points.size());
+  return hull;
+}
+
+}  // namespace sdot

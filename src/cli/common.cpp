@@ -1,0 +1,154 @@
+#include "common.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <sys/resource.h>
+
+namespace sdot::cli {
+
+double read_number(const json& value, const std::string& field) {
+  if (!value.is_number()) throw InputError(field, "must be a number");
+  const double x = value.get<double>();
+  if (!std::isfinite(x)) throw InputError(field, "must be finite");
+  return x;
+}
+
+std::vector<Eigen::VectorXd> read_points(const json& value, const std::string& field, int dimension) {
+  if (!value.is_array()) throw InputError(field, "must be an array of points");
+  std::vector<Eigen::VectorXd> points;
+  points.reserve(value.size());
+  for (std::size_t i = 0; i < value.size(); ++i) {
+    const json& p = value[i];
+    const std::string name = indexed(field, i);
+    if (!p.is_array() || p.size() != static_cast<std::size_t>(dimension))
+      throw InputError(name, "must be an array of " + std::to_string(dimension) + " numbers");
+    Eigen::VectorXd point(dimension);
+    for (int d = 0; d < dimension; ++d) {
+      if (!p[d].is_number()) throw InputError(name, "coordinate " + std::to_string(d) + " is not a number");
+      point[d] = p[d].get<double>();
+      if (!std::isfinite(point[d])) throw InputError(name, "coordinate is not finite");
+    }
+    points.push_back(point);
+  }
+  return points;
+}
+
+Eigen::VectorXd read_vector(const json& value, const std::string& field) {
+  if (!value.is_array()) throw InputError(field, "must be an array of numbers");
+  Eigen::VectorXd v(static_cast<Eigen::Index>(value.size()));
+  for (std::size_t i = 0; i < value.size(); ++i) v[static_cast<Eigen::Index>(i)] = read_number(value[i], indexed(field, i));
+  return v;
+}
+
+void check_known_fields(const json& object, const std::string& where, const std::vector<std::string>& known) {
+  if (!object.is_object()) throw InputError(where.empty() ? "problem" : where, "must be a JSON object");
+  for (const auto& [key, value] : object.items())
+    if (std::find(known.begin(), known.end(), key) == known.end())
+      throw InputError(where.empty() ? key : where + "." + key, "unknown field");
+}
+
+Options read_options(const json& problem, bool quiet) {
+  Options options;
+  if (problem.contains("tolerance")) options.tolerance = read_number(problem["tolerance"], "tolerance");
+  if (problem.contains("max_iterations")) {
+    if (!problem["max_iterations"].is_number_integer()) throw InputError("max_iterations", "must be an integer");
+    options.max_iterations = problem["max_iterations"].get<int>();
+  }
+  if (problem.contains("linear_solver")) {
+    const auto& solver = problem["linear_solver"];
+    if (solver == "ldlt") options.linear_solver = LinearSolverKind::ldlt;
+    else if (solver == "cg") options.linear_solver = LinearSolverKind::conjugate_gradient;
+    else throw InputError("linear_solver", "must be \"ldlt\" or \"cg\"");
+  }
+  try {
+    options.validate();
+  } catch (const InputError& e) {
+    // Name the problem file's field, not the C++ one.
+    std::string field = e.field();
+    if (field.rfind("options.", 0) == 0) field = field.substr(8);
+    throw InputError(field, std::string(e.what()).substr(e.field().size() + 2));
+  }
+  if (!quiet)
+    options.callback = [](const IterationRecord& r) {
+      std::fprintf(stderr, "  iteration %3d  max rel. error %9.3e  rms %9.3e  step %-9g %8.3f s\n", r.iteration,
+                   r.max_relative_error, r.rms_relative_error, r.step, r.elapsed_s);
+    };
+  return options;
+}
+
+Eigen::VectorXd read_masses(const json& problem, std::size_t site_count) {
+  if (!problem.contains("masses")) return equal_masses(site_count);
+  Eigen::VectorXd masses = read_vector(problem["masses"], "masses");
+  if (static_cast<std::size_t>(masses.size()) != site_count)
+    throw InputError("masses", "there are " + std::to_string(masses.size()) + " masses for " +
+                                   std::to_string(site_count) + " sites");
+  for (Eigen::Index i = 0; i < masses.size(); ++i)
+    if (!(masses[i] > 0)) throw InputError(indexed("masses", static_cast<std::size_t>(i)), "must be positive");
+  return masses;
+}
+
+std::optional<Eigen::VectorXd> read_weights(const json& problem, std::size_t site_count) {
+  if (!problem.contains("weights")) return std::nullopt;
+  Eigen::VectorXd weights = read_vector(problem["weights"], "weights");
+  if (static_cast<std::size_t>(weights.size()) != site_count)
+    throw InputError("weights", "there are " + std::to_string(weights.size()) + " weights for " +
+                                    std::to_string(site_count) + " sites");
+  return weights;
+}
+
+double peak_rss_mb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;
+}
+
+Svg::Svg(double x0, double y0, double x1, double y1, double width_px)
+    : x0_(x0), y1_(y1), scale_(width_px / (x1 - x0)), width_(width_px), height_((y1 - y0) * width_px / (x1 - x0)) {}
+
+std::string Svg::xy(const Eigen::Vector2d& p) const {
+  return fmt::format("{:.2f},{:.2f}", (p.x() - x0_) * scale_, (y1_ - p.y()) * scale_);
+}
+
+void Svg::polygon(const std::vector<Eigen::Vector2d>& points, const std::string& style) {
+  body_ << "<polygon points=\"";
+  for (const auto& p : points) body_ << xy(p) << ' ';
+  body_ << "\" " << style << "/>\n";
+}
+
+void Svg::polyline(const std::vector<Eigen::Vector2d>& points, const std::string& style) {
+  body_ << "<polyline points=\"";
+  for (const auto& p : points) body_ << xy(p) << ' ';
+  body_ << "\" fill=\"none\" " << style << "/>\n";
+}
+
+void Svg::circle(const Eigen::Vector2d& center, double radius_px, const std::string& style) {
+  const auto c = xy(center);
+  const auto comma = c.find(',');
+  body_ << fmt::format("<circle cx=\"{}\" cy=\"{}\" r=\"{:.2f}\" {}/>\n", c.substr(0, comma), c.substr(comma + 1),
+                       radius_px, style);
+}
+
+void Svg::world_circle(const Eigen::Vector2d& center, double radius, const std::string& style) {
+  circle(center, radius * scale_, style);
+}
+
+void Svg::text(const Eigen::Vector2d& at, const std::string& text, double size_px) {
+  const auto c = xy(at);
+  const auto comma = c.find(',');
+  body_ << fmt::format("<text x=\"{}\" y=\"{}\" font-family=\"sans-serif\" font-size=\"{}\">{}</text>\n",
+                       c.substr(0, comma), c.substr(comma + 1), size_px, text);
+}
+
+std::string Svg::str() const {
+  return fmt::format(
+      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{:.0f}\" height=\"{:.0f}\" viewBox=\"0 0 {:.0f} {:.0f}\">\n"
+      "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n{}</svg>\n",
+      width_, height_, width_, height_, body_.str());
+}
+
+double dot_radius_px(std::size_t count) {
+  return std::clamp(40.0 / std::sqrt(static_cast<double>(std::max<std::size_t>(count, 1))), 0.6, 5.0);
+}
+
+}  // namespace sdot::cli
