@@ -2,10 +2,18 @@
 // Implementation of solver.hpp (templates).
 
 #include <Eigen/SparseCore>
+#include <cstdio>
 
 namespace sdot::detail {
 
 using Clock = std::chrono::steady_clock;
+/// A number for messages: 3 significant digits (std::to_string would print 1e-10 as 0.000000).
+inline std::string format_number(double x) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.3g", x);
+  return buffer;
+}
+
 inline double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
@@ -180,8 +188,8 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
   const double target_sum = targets.sum();
   summary.mass_scale = summary.source_mass / target_sum;
   if (!options.rescale_masses && std::abs(summary.mass_scale - 1) > options.mass_sum_tolerance)
-    throw InputError("masses", "they sum to " + std::to_string(target_sum) + " but the source mass is " +
-                                   std::to_string(summary.source_mass) +
+    throw InputError("masses", "they sum to " + detail::format_number(target_sum) + " but the source mass is " +
+                                   detail::format_number(summary.source_mass) +
                                    " (enable options.rescale_masses to rescale them)");
   targets *= summary.mass_scale;
 
@@ -228,12 +236,12 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
 
   for (int iteration = 1;; ++iteration) {
     if (error.max_relative <= options.tolerance)
-      return finish(Status::converged, "converged: max relative mass error " + std::to_string(error.max_relative) +
-                                           " <= " + std::to_string(options.tolerance));
+      return finish(Status::converged, "converged: max relative mass error " + detail::format_number(error.max_relative) +
+                                           " <= " + detail::format_number(options.tolerance));
     if (iteration > options.max_iterations)
       return finish(Status::iteration_limit,
                     "iteration limit (" + std::to_string(options.max_iterations) +
-                        ") reached with max relative mass error " + std::to_string(error.max_relative) +
+                        ") reached with max relative mass error " + detail::format_number(error.max_relative) +
                         " at site " + std::to_string(error.worst));
     auto linear_start = detail::Clock::now();
     const SparseMatrix hessian = detail::assemble_hessian(n, current.facet_weights);
@@ -265,7 +273,7 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
     if (!accepted)
       return finish(Status::line_search_failure,
                     "no step length decreased the mass error after " + std::to_string(options.max_step_halvings) +
-                        " halvings; the max relative mass error " + std::to_string(error.max_relative) +
+                        " halvings; the max relative mass error " + detail::format_number(error.max_relative) +
                         " is at the precision floor of this problem (raise the tolerance)");
     record(iteration, step);
   }

@@ -1,0 +1,78 @@
+// The shared cell builder against brute force (clipping by every other site).
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "sdot/chart_diagram.hpp"
+
+namespace sdot {
+namespace {
+
+std::vector<ChartCell> brute_force(std::span<const Vec3> dual, const ConvexPolygon& domain) {
+  std::vector<ChartCell> cells(dual.size());
+  for (std::size_t i = 0; i < dual.size(); ++i) {
+    auto& cell = cells[i];
+    cell.vertices = domain.vertices();
+    for (std::size_t k = 0; k < cell.vertices.size(); ++k) cell.neighbors.push_back(boundary_label(static_cast<int>(k)));
+    for (std::size_t j = 0; j < dual.size(); ++j)
+      if (j != i) {
+        const Vec3 d = dual[i] - dual[j];
+        clip(cell, d.head<2>(), d.z(), static_cast<int>(j));
+      }
+  }
+  return cells;
+}
+
+double area(const ChartCell& cell) {
+  double twice = 0;
+  for (std::size_t k = 0; k < cell.size(); ++k) {
+    const Vec2& a = cell.vertices[k];
+    const Vec2& b = cell.vertices[(k + 1) % cell.size()];
+    twice += a.x() * b.y() - a.y() * b.x();
+  }
+  return twice / 2;
+}
+
+TEST(ChartDiagram, MatchesBruteForceOnRandomPowerDiagrams) {
+  std::mt19937_64 random(1);
+  std::uniform_real_distribution<double> uniform(-1.5, 1.5);
+  const ConvexPolygon domain({{-1, -1}, {1, -1}, {1.2, 0.5}, {0, 1}, {-1, 0.6}});
+  for (int trial = 0; trial < 20; ++trial) {
+    const std::size_t n = 1 + static_cast<std::size_t>(trial * 7);
+    std::vector<Vec3> dual(n);
+    for (auto& d : dual) d = Vec3(uniform(random), uniform(random), 0.3 * uniform(random));
+    const auto fast = build_chart_diagram(dual, domain);
+    const auto slow = brute_force(dual, domain);
+    double total = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      EXPECT_NEAR(area(fast[i]), area(slow[i]), 1e-13) << "trial " << trial << " cell " << i;
+      total += area(fast[i]);
+    }
+    EXPECT_NEAR(total, domain.area(), 1e-12);
+  }
+}
+
+TEST(ChartDiagram, CollinearAndSingleSites) {
+  const auto domain = ConvexPolygon::rectangle(0, 0, 1, 1);
+  std::vector<Vec3> one{{5, 5, 0}};
+  EXPECT_NEAR(area(build_chart_diagram(one, domain)[0]), 1, 1e-15);
+  std::vector<Vec3> line;
+  for (int i = 0; i < 10; ++i) line.emplace_back(0.1 * i, 0, -0.005 * i * i);  // sites on y = 0
+  const auto cells = build_chart_diagram(line, domain);
+  // Voronoi strips of the points 0, 0.1, …, 0.9 on the x axis, cut to [0, 1].
+  for (int i = 0; i < 10; ++i)
+    EXPECT_NEAR(area(cells[i]), (i == 9 ? 1.0 : 0.1 * i + 0.05) - std::max(0.0, 0.1 * i - 0.05), 1e-13);
+}
+
+TEST(ChartDiagram, ClipKeepsLabels) {
+  ChartCell cell{{{0, 0}, {1, 0}, {1, 1}, {0, 1}}, {-1, -2, -3, -4}};
+  clip(cell, Vec2(-1, 0), 0.5, 7);  // keep x ≤ 0.5
+  ASSERT_EQ(cell.size(), 4u);
+  EXPECT_NEAR(area(cell), 0.5, 1e-15);
+  int sevens = 0;
+  for (int label : cell.neighbors) sevens += label == 7;
+  EXPECT_EQ(sevens, 1);
+}
+
+}  // namespace
+}  // namespace sdot
