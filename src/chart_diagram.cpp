@@ -5,6 +5,9 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <numeric>
+
+#include <Eigen/Dense>
 
 #include "sdot/error.hpp"
 
@@ -268,9 +271,200 @@ std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const Con
   return cells;
 }
 
+namespace {
+
+// A kd-tree over the power-diagram centres c_i with the largest power weight per node, for
+// exact branch-and-bound "who is below the envelope at v" queries (see build_chart_diagram).
+class PowerTree {
+public:
+  PowerTree(std::span<const Vec2> centers, std::span<const double> weights)
+      : centers_(centers), weights_(weights), order_(centers.size()) {
+    std::iota(order_.begin(), order_.end(), 0);
+    nodes_.reserve(2 * centers.size() / leaf_size + 2);
+    build(0, static_cast<int>(centers.size()));
+  }
+
+  /// The j minimising pow_j(v) = |v − c_j|² − w_j among those with pow_j(v) < bound, or −1.
+  [[nodiscard]] int lowest(const Vec2& v, double bound) const {
+    int best = -1;
+    int stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const Node& node = nodes_[stack[--top]];
+      if (lower_bound(node, v) >= bound) continue;
+      if (node.left < 0) {
+        for (int k = node.begin; k < node.end; ++k) {
+          const int j = order_[k];
+          const double power = (v - centers_[j]).squaredNorm() - weights_[j];
+          if (power < bound) bound = power, best = j;
+        }
+      } else if (lower_bound(nodes_[node.left], v) <= lower_bound(nodes_[node.right], v)) {
+        stack[top++] = node.right;  // the more promising child is visited first
+        stack[top++] = node.left;
+      } else {
+        stack[top++] = node.left;
+        stack[top++] = node.right;
+      }
+    }
+    return best;
+  }
+
+  /// Site indices in tree (spatially coherent) order.
+  [[nodiscard]] const std::vector<int>& order() const { return order_; }
+
+  /// The up to `count` centres nearest to `v` (Euclidean), unordered.
+  void nearest(const Vec2& v, std::size_t count, std::vector<std::pair<double, int>>& heap) const {
+    heap.clear();
+    int stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const Node& node = nodes_[stack[--top]];
+      const Vec2 gap = (node.low - v).cwiseMax(v - node.high).cwiseMax(0.0);
+      if (heap.size() == count && gap.squaredNorm() >= heap.front().first) continue;
+      if (node.left < 0) {
+        for (int k = node.begin; k < node.end; ++k) {
+          const int j = order_[k];
+          const double d = (v - centers_[j]).squaredNorm();
+          if (heap.size() < count) {
+            heap.emplace_back(d, j);
+            std::push_heap(heap.begin(), heap.end());
+          } else if (d < heap.front().first) {
+            std::pop_heap(heap.begin(), heap.end());
+            heap.back() = {d, j};
+            std::push_heap(heap.begin(), heap.end());
+          }
+        }
+      } else {
+        // Visit the nearer child first (pushed last).
+        const Node& l = nodes_[node.left];
+        const Vec2 lg = (l.low - v).cwiseMax(v - l.high).cwiseMax(0.0);
+        const Node& r = nodes_[node.right];
+        const Vec2 rg = (r.low - v).cwiseMax(v - r.high).cwiseMax(0.0);
+        if (lg.squaredNorm() <= rg.squaredNorm()) {
+          stack[top++] = node.right;
+          stack[top++] = node.left;
+        } else {
+          stack[top++] = node.left;
+          stack[top++] = node.right;
+        }
+      }
+    }
+  }
+
+private:
+  static constexpr int leaf_size = 8;
+  struct Node;
+  static double lower_bound(const Node& node, const Vec2& v) {
+    const Vec2 gap = (node.low - v).cwiseMax(v - node.high).cwiseMax(0.0);
+    return gap.squaredNorm() - node.max_weight;
+  }
+  struct Node {
+    Vec2 low = Vec2::Zero(), high = Vec2::Zero();
+    double max_weight = 0;
+    int begin = 0, end = 0, left = -1, right = -1;
+  };
+
+  int build(int begin, int end) {
+    const int index = static_cast<int>(nodes_.size());
+    nodes_.push_back({});
+    Vec2 low = Vec2::Constant(INFINITY), high = Vec2::Constant(-INFINITY);
+    double max_weight = -INFINITY;
+    for (int k = begin; k < end; ++k) {
+      low = low.cwiseMin(centers_[order_[k]]);
+      high = high.cwiseMax(centers_[order_[k]]);
+      max_weight = std::max(max_weight, weights_[order_[k]]);
+    }
+    int left = -1, right = -1;
+    if (end - begin > leaf_size) {
+      const int axis = (high - low).x() >= (high - low).y() ? 0 : 1;
+      const int middle = (begin + end) / 2;
+      std::nth_element(order_.begin() + begin, order_.begin() + middle, order_.begin() + end,
+                       [&](int a, int b) { return centers_[a][axis] < centers_[b][axis]; });
+      left = build(begin, middle);
+      right = build(middle, end);
+    }
+    nodes_[index] = {low, high, max_weight, begin, end, left, right};
+    return index;
+  }
+
+  std::span<const Vec2> centers_;
+  std::span<const double> weights_;
+  std::vector<int> order_;
+  std::vector<Node> nodes_;
+};
+
+}  // namespace
+
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain) {
-  if (dual.empty()) return {};
-  return build_chart_diagram(dual, domain, chart_adjacency(dual, domain));
+  // Power-diagram form of the envelope: maximising f_i is minimising
+  // pow_i(v) = |v|² − 2 f_i(v) = |v − c_i|² − w_i, with c_i = a_i.xy and w_i = 2 a_i.z + |c_i|².
+  // Each cell starts as the domain clipped by the sites of the nearest centres; then, while some
+  // site j is strictly below the envelope at a vertex v of the cell (pow_j(v) < pow_i(v)), the
+  // cell is clipped by it. A kd-tree holding the largest w per node finds such j exactly
+  // (branch and bound), so the loop ends with the exact cell whatever the weights.
+  const std::size_t n = dual.size();
+  std::vector<ChartCell> cells(n);
+  if (n == 0) return cells;
+  std::vector<Vec2> centers(n);
+  std::vector<double> power_weight(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    centers[i] = dual[i].head<2>();
+    power_weight[i] = 2 * dual[i].z() + centers[i].squaredNorm();
+  }
+  const PowerTree tree(centers, power_weight);
+  const auto& boundary = domain.vertices();
+  const std::size_t seed_count = std::min<std::size_t>(n, 13);
+
+#pragma omp parallel
+  {
+    std::vector<std::pair<double, int>> heap;
+    std::vector<int> used, pending;
+    // Cells in tree order: neighbouring cells share tree nodes and stay in cache.
+#pragma omp for schedule(dynamic, 256)
+    for (std::size_t position = 0; position < n; ++position) {
+      const auto i = static_cast<std::size_t>(tree.order()[position]);
+      ChartCell& cell = cells[i];
+      cell.vertices.assign(boundary.begin(), boundary.end());
+      cell.neighbors.resize(boundary.size());
+      for (std::size_t k = 0; k < boundary.size(); ++k) cell.neighbors[k] = boundary_label(static_cast<int>(k));
+      used.assign(1, static_cast<int>(i));
+      tree.nearest(centers[i], seed_count, heap);
+      std::sort(heap.begin(), heap.end());
+      for (const auto& [distance, j] : heap) {
+        if (j == static_cast<int>(i)) continue;
+        const Vec3 difference = dual[i] - dual[j];
+        clip(cell, difference.head<2>(), difference.z(), j);
+        used.push_back(j);
+        if (cell.vertices.empty()) break;
+      }
+      // Clip by the site lowest below the envelope at each vertex until none is below: the
+      // lowest one owns that vertex's neighbourhood, so each round removes wrong vertices.
+      while (!cell.vertices.empty()) {
+        pending.clear();
+        for (const auto& v : cell.vertices) {
+          const double own = (v - centers[i]).squaredNorm() - power_weight[i];
+          // Slack: the sites through v itself (its Laguerre neighbours) are not below it.
+          const double slack = 1e-13 * (std::abs(own) + (v - centers[i]).squaredNorm() + 1e-300);
+          const int j = tree.lowest(v, own - slack);
+          if (j >= 0 && std::find(pending.begin(), pending.end(), j) == pending.end()) pending.push_back(j);
+        }
+        if (pending.empty()) break;
+        bool progress = false;
+        for (int j : pending) {
+          if (std::find(used.begin(), used.end(), j) != used.end()) continue;  // roundoff: already clipped
+          const Vec3 difference = dual[i] - dual[j];
+          clip(cell, difference.head<2>(), difference.z(), j);
+          used.push_back(j);
+          progress = true;
+          if (cell.vertices.empty()) break;
+        }
+        if (!progress) break;
+      }
+    }
+  }
+  return cells;
 }
 
 Hull3 convex_hull_3d(std::span<const Vec3> points) {

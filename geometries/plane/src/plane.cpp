@@ -36,6 +36,7 @@ Eigen::VectorXd Plane::default_weights(std::span<const Point> sites) const {
   const auto& boundary = domain_.vertices();
   double t = 1;
   for (const auto& site : sites) {
+    if (domain_.contains(site)) continue;  // only sites outside the domain need shrinking
     const Vec2 direction = site - center;
     for (std::size_t k = 0; k < boundary.size(); ++k) {
       const Vec2& a = boundary[k];
