@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Installs the Debian packages sdot needs, when missing (sudo only when not root).
+set -euo pipefail
+packages=(cmake g++ make libeigen3-dev libboost-dev libqhull-dev libfmt-dev libgtest-dev
+          nlohmann-json3-dev python3-numpy)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all packages present"
+  exit 0
+fi
+echo "install-deps: installing ${missing[*]}"
+sudo=""
+if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$sudo apt-get update -qq
+$sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"

@@ -1,0 +1,172 @@
+// The sdot command end to end: problem files in, results and pictures out, clear errors.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <sys/wait.h>
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct Run {
+  int exit_code;
+  std::string out, err;
+};
+
+fs::path scratch() {
+  const fs::path dir = fs::temp_directory_path() / ("sdot_cli_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::string slurp(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+Run run(const std::string& arguments) {
+  const fs::path dir = scratch();
+  const std::string command = std::string(SDOT_COMMAND) + " " + arguments + " > " + (dir / "stdout").string() +
+                              " 2> " + (dir / "stderr").string();
+  const int status = std::system(command.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "stdout"), slurp(dir / "stderr")};
+}
+
+fs::path write(const std::string& name, const std::string& content) {
+  const fs::path path = scratch() / name;
+  std::ofstream(path) << content;
+  return path;
+}
+
+TEST(Cli, SolvesAPlaneProblemAndWritesResultAndSvg) {
+  const auto problem = write("p.json", R"({"geometry": "plane", "sites": [[0.2,0.2],[0.8,0.3],[0.5,0.8],[0.3,0.6]],
+    "masses": [1, 2, 3, 4], "tolerance": 1e-12})");
+  const auto result_path = scratch() / "r.json", svg_path = scratch() / "d.svg";
+  const auto r = run("solve " + problem.string() + " -o " + result_path.string() + " --svg " + svg_path.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const json result = json::parse(slurp(result_path));
+  EXPECT_EQ(result["status"], "converged");
+  EXPECT_LE(result["max_relative_mass_error"].get<double>(), 1e-12);
+  EXPECT_NEAR(result["mass_scale"].get<double>(), 0.1, 1e-15);
+  const auto masses = result["masses"].get<std::vector<double>>();
+  ASSERT_EQ(masses.size(), 4u);
+  for (int i = 0; i < 4; ++i) EXPECT_NEAR(masses[i], 0.1 * (i + 1), 1e-12);
+  double weight_sum = 0;
+  for (double w : result["weights"].get<std::vector<double>>()) weight_sum += w;
+  EXPECT_NEAR(weight_sum, 0, 1e-14);
+  EXPECT_EQ(result["centroids"].size(), 4u);
+  for (const char* key : {"iterations", "transport_cost", "timings", "history", "adjacency"})
+    EXPECT_TRUE(result.contains(key)) << key;
+  const std::string svg = slurp(svg_path);
+  EXPECT_EQ(svg.rfind("<svg", 0), 0u);
+  EXPECT_GE(static_cast<int>(std::count(svg.begin(), svg.end(), '\n')), 4 + 4 + 4);  // cells, sites, centroids
+  EXPECT_NE(r.err.find("iteration"), std::string::npos) << "progress goes to stderr";
+}
+
+TEST(Cli, QuietSuppressesProgressAndResultGoesToStdout) {
+  const auto problem = write("q.json", R"({"geometry": "plane", "sites": [[0.2,0.2],[0.8,0.3]]})");
+  const auto r = run("solve " + problem.string() + " --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(r.err.empty()) << r.err;
+  EXPECT_EQ(json::parse(r.out)["status"], "converged");
+}
+
+TEST(Cli, CustomDomainAndInitialWeights) {
+  const auto problem = write("d.json", R"({"geometry": "plane", "sites": [[1,1],[3,1]],
+    "domain": [[0,0],[4,0],[4,2],[0,2]], "weights": [0.1, -0.1], "density": {"type": "uniform"}})");
+  const auto r = run("solve " + problem.string() + " --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const json result = json::parse(r.out);
+  EXPECT_NEAR(result["source_mass"].get<double>(), 8, 1e-14);
+  EXPECT_NEAR(result["masses"][0].get<double>(), 4, 1e-9);
+}
+
+TEST(Cli, NonConvergenceIsExitCode3WithAResult) {
+  const auto problem = write("n.json", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.9,0.1],[0.5,0.9]],
+    "masses": [1, 50, 100], "max_iterations": 0})");
+  const auto r = run("solve " + problem.string() + " --quiet");
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(json::parse(r.out)["status"], "iteration_limit");
+}
+
+struct BadInput {
+  const char* name;
+  const char* problem;
+  const char* expected;  // in the one-line message
+};
+
+class CliBadInput : public ::testing::TestWithParam<BadInput> {};
+
+TEST_P(CliBadInput, ExitsWithCode2AndAOneLineReason) {
+  const auto& c = GetParam();
+  const auto path = write(std::string(c.name) + ".json", c.problem);
+  const auto r = run("solve " + path.string() + " --quiet");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find(c.expected), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_TRUE(r.out.empty());
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, CliBadInput,
+    ::testing::Values(
+        BadInput{"malformed", R"({"geometry": "plane", "sites": [[0,0],)", "malformed JSON"},
+        BadInput{"unknown_geometry", R"({"geometry": "torus", "sites": [[0,0]]})", "geometry: unknown geometry 'torus'"},
+        BadInput{"missing_geometry", R"({"sites": [[0,0]]})", "geometry: missing"},
+        BadInput{"nan_site", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,"x"]]})", "sites[1]: coordinate 1 is not a number"},
+        BadInput{"short_site", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5]]})", "sites[1]: must be an array of 2 numbers"},
+        BadInput{"duplicate", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5],[0.1,0.1]]})", "sites[2]: duplicate of sites[0]"},
+        BadInput{"zero_mass", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]], "masses": [1, 0]})", "masses[1]: must be positive"},
+        BadInput{"negative_mass", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]], "masses": [-1, 1]})", "masses[0]: must be positive"},
+        BadInput{"mass_count", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]], "masses": [1]})", "masses: there are 1 masses for 2 sites"},
+        BadInput{"degenerate_domain", R"({"geometry": "plane", "sites": [[0.1,0.1]], "domain": [[0,0],[1,1],[2,2]]})", "domain: polygon is degenerate"},
+        BadInput{"nonconvex_domain", R"({"geometry": "plane", "sites": [[0.1,0.1]], "domain": [[0,0],[2,0],[1,0.3],[1,2]]})", "domain[2]: polygon is not convex"},
+        BadInput{"bad_tolerance", R"({"geometry": "plane", "sites": [[0.1,0.1]], "tolerance": -1})", "tolerance: must be a positive number"},
+        BadInput{"unknown_field", R"({"geometry": "plane", "sites": [[0.1,0.1]], "tolerence": 1e-9})", "tolerence: unknown field"},
+        BadInput{"unknown_density", R"({"geometry": "plane", "sites": [[0.1,0.1]], "density": {"type": "image"}})", "density.type: unknown density type"},
+        BadInput{"empty_sites", R"({"geometry": "plane", "sites": []})", "sites: at least one site is needed"},
+        BadInput{"not_object", R"([1, 2, 3])", "the problem must be a JSON object"}),
+    [](const ::testing::TestParamInfo<BadInput>& info) { return std::string(info.param.name); });
+
+TEST(Cli, UsageErrors) {
+  EXPECT_EQ(run("").exit_code, 2);
+  EXPECT_EQ(run("frobnicate").exit_code, 2);
+  EXPECT_EQ(run("bench --geometry plane").exit_code, 2);
+  EXPECT_EQ(run("bench --geometry plane --n abc").exit_code, 2);
+  const auto r = run("solve /nonexistent/problem.json");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("cannot open"), std::string::npos);
+  EXPECT_EQ(run("--help").exit_code, 0);
+}
+
+TEST(Cli, BenchPrintsOneJsonLine) {
+  const auto r = run("bench --geometry plane --n 500 --seed 3 --tolerance 1e-8 --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1);
+  const json line = json::parse(r.out);
+  for (const char* key : {"geometry", "n", "iterations", "max_relative_mass_error", "time_s", "diagram_s",
+                          "linear_solve_s", "peak_rss_mb"})
+    EXPECT_TRUE(line.contains(key)) << key;
+  EXPECT_EQ(line["n"], 500);
+  EXPECT_LE(line["max_relative_mass_error"].get<double>(), 1e-8);
+}
+
+TEST(Cli, DemoWritesResultsAndPictures) {
+  const auto out = scratch() / "demo_out";
+  const auto r = run("demo --quiet --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(out / "plane_result.json"));
+  EXPECT_TRUE(fs::exists(out / "plane_diagram.svg"));
+  EXPECT_EQ(json::parse(slurp(out / "plane_result.json"))["status"], "converged");
+}
+
+}  // namespace
