@@ -10,6 +10,7 @@ configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/sdotConfig.cmake.in
   ${PROJECT_BINARY_DIR}/sdotConfig.cmake INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/sdot)
 write_basic_package_version_file(${PROJECT_BINARY_DIR}/sdotConfigVersion.cmake COMPATIBILITY SameMinorVersion)
 install(FILES ${PROJECT_BINARY_DIR}/sdotConfig.cmake ${PROJECT_BINARY_DIR}/sdotConfigVersion.cmake
+  ${PROJECT_SOURCE_DIR}/cmake/FindCHOLMOD.cmake
   DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/sdot)
 if(SDOT_BUILD_CLI)
   install(TARGETS sdot_command RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})

@@ -16,6 +16,8 @@ std::string Options::validation_error() const {
     return field("max_iterations", "must be >= 0, got " + std::to_string(max_iterations));
   if (max_step_halvings < 1 || max_step_halvings > 60)
     return field("max_step_halvings", "must be in [1, 60], got " + std::to_string(max_step_halvings));
+  if (linear_solver == LinearSolverKind::cholmod && !has_cholmod())
+    return field("linear_solver", "CHOLMOD is not available in this build (install libsuitesparse-dev and rebuild)");
   if (!(std::isfinite(cg_tolerance) && cg_tolerance > 0))
     return field("cg_tolerance", "must be a positive number");
   if (!(std::isfinite(mass_sum_tolerance) && mass_sum_tolerance >= 0))

@@ -8,6 +8,9 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <concepts>
+#ifdef SDOT_HAVE_CHOLMOD
+#include <Eigen/CholmodSupport>
+#endif
 
 namespace sdot {
 
@@ -33,9 +36,22 @@ concept FactorizingLinearSolver = LinearSolver<S> && requires(S solver, const Sp
 enum class LinearSolverKind {
   ldlt,                ///< Eigen::SimplicialLDLT (sparse Cholesky), the default
   conjugate_gradient,  ///< Eigen::ConjugateGradient with a Jacobi preconditioner
+  cholmod,             ///< CHOLMOD's supernodal Cholesky (when built with SuiteSparse)
 };
+
+/// True when this build offers LinearSolverKind::cholmod.
+constexpr bool has_cholmod() {
+#ifdef SDOT_HAVE_CHOLMOD
+  return true;
+#else
+  return false;
+#endif
+}
 
 using DefaultLinearSolver = Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower>;
 using ConjugateGradientSolver = Eigen::ConjugateGradient<SparseMatrix, Eigen::Lower | Eigen::Upper>;
+#ifdef SDOT_HAVE_CHOLMOD
+using CholmodSolver = Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower>;
+#endif
 
 }  // namespace sdot

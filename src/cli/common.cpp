@@ -48,6 +48,29 @@ void check_known_fields(const json& object, const std::string& where, const std:
       throw InputError(where.empty() ? key : where + "." + key, "unknown field");
 }
 
+namespace {
+LinearSolverKind read_linear_solver(const json& solver) {
+  if (solver == "ldlt") return LinearSolverKind::ldlt;
+  if (solver == "cg") return LinearSolverKind::conjugate_gradient;
+  if (solver == "cholmod") return LinearSolverKind::cholmod;
+  throw InputError("linear_solver", "must be \"ldlt\", \"cg\" or \"cholmod\"");
+}
+
+void print_progress(const IterationRecord& r) {
+  std::fprintf(stderr, "  iteration %3d  max rel. error %9.3e  rms %9.3e  step %-9g %8.3f s\n", r.iteration,
+               r.max_relative_error, r.rms_relative_error, r.step, r.elapsed_s);
+}
+}  // namespace
+
+Options bench_options(const BenchRequest& request) {
+  Options options;
+  options.tolerance = request.tolerance;
+  options.linear_solver = read_linear_solver(request.linear_solver);
+  options.validate();
+  if (!request.quiet) options.callback = print_progress;
+  return options;
+}
+
 Options read_options(const json& problem, bool quiet) {
   Options options;
   if (problem.contains("tolerance")) options.tolerance = read_number(problem["tolerance"], "tolerance");
@@ -55,12 +78,7 @@ Options read_options(const json& problem, bool quiet) {
     if (!problem["max_iterations"].is_number_integer()) throw InputError("max_iterations", "must be an integer");
     options.max_iterations = problem["max_iterations"].get<int>();
   }
-  if (problem.contains("linear_solver")) {
-    const auto& solver = problem["linear_solver"];
-    if (solver == "ldlt") options.linear_solver = LinearSolverKind::ldlt;
-    else if (solver == "cg") options.linear_solver = LinearSolverKind::conjugate_gradient;
-    else throw InputError("linear_solver", "must be \"ldlt\" or \"cg\"");
-  }
+  if (problem.contains("linear_solver")) options.linear_solver = read_linear_solver(problem["linear_solver"]);
   try {
     options.validate();
   } catch (const InputError& e) {
@@ -69,11 +87,7 @@ Options read_options(const json& problem, bool quiet) {
     if (field.rfind("options.", 0) == 0) field = field.substr(8);
     throw InputError(field, std::string(e.what()).substr(e.field().size() + 2));
   }
-  if (!quiet)
-    options.callback = [](const IterationRecord& r) {
-      std::fprintf(stderr, "  iteration %3d  max rel. error %9.3e  rms %9.3e  step %-9g %8.3f s\n", r.iteration,
-                   r.max_relative_error, r.rms_relative_error, r.step, r.elapsed_s);
-    };
+  if (!quiet) options.callback = print_progress;
   return options;
 }
 

@@ -12,6 +12,7 @@
 
 #include "sdot/error.hpp"
 #include "sdot/options.hpp"
+#include "registry.hpp"
 #include "sdot/solver.hpp"
 
 namespace sdot::cli {
@@ -24,6 +25,8 @@ double read_number(const json& value, const std::string& field);
 std::vector<Eigen::VectorXd> read_points(const json& value, const std::string& field, int dimension);
 /// An array of numbers.
 Eigen::VectorXd read_vector(const json& value, const std::string& field);
+/// Solver options of `sdot bench`: tolerance, linear solver, progress unless quiet.
+Options bench_options(const struct BenchRequest& request);
 /// Solver options from a problem: tolerance, max_iterations, linear_solver.
 Options read_options(const json& problem, bool quiet);
 /// Rejects fields of `object` that are not in `known` (catches typos in problem files).

@@ -16,7 +16,7 @@ using sdot::cli::json;
 constexpr const char* usage_text =
     "usage:\n"
     "  sdot solve PROBLEM.json [-o RESULT.json] [--svg DIAGRAM.svg] [--quiet]\n"
-    "  sdot bench --geometry NAME --n N [--seed S] [--tolerance T] [--quiet]\n"
+    "  sdot bench --geometry NAME --n N [--seed S] [--tolerance T] [--linear-solver ldlt|cg|cholmod] [--quiet]\n"
     "  sdot demo [--out DIR] [--quiet]\n"
     "  sdot --help | --version\n"
     "exit codes: 0 success, 1 internal error, 2 bad input or usage, 3 the solver did not converge\n";
@@ -113,7 +113,8 @@ int run_bench(const sdot::cli::Registry& registry, int argc, char** argv) {
     else if (arg == "--tolerance") {
       request.tolerance = number(next_argument(i, argc, argv));
       if (!(request.tolerance > 0)) throw UsageError("--tolerance must be positive");
-    } else if (arg == "--quiet" || arg == "-q") request.quiet = true;
+    } else if (arg == "--linear-solver") request.linear_solver = next_argument(i, argc, argv);
+    else if (arg == "--quiet" || arg == "-q") request.quiet = true;
     else throw UsageError("unknown option " + arg);
   }
   if (geometry.empty() || !have_n) throw UsageError("bench needs --geometry NAME and --n N");

@@ -26,6 +26,7 @@ struct BenchRequest {
   unsigned seed = 1;
   double tolerance = 1e-6;
   bool quiet = false;
+  std::string linear_solver = "ldlt";  // "ldlt", "cg" or "cholmod"
 };
 
 struct GeometryCommands {

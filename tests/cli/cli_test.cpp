@@ -135,7 +135,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"unknown_density", R"({"geometry": "plane", "sites": [[0.1,0.1]], "density": {"type": "image"}})", "density.type: unknown density type"},
         BadInput{"empty_sites", R"({"geometry": "plane", "sites": []})", "sites: at least one site is needed"},
         BadInput{"not_object", R"([1, 2, 3])", "the problem must be a JSON object"}),
-    [](const ::testing::TestParamInfo<BadInput>& info) { return std::string(info.param.name); });
+    [](const ::testing::TestParamInfo<BadInput>& param_info) { return std::string(param_info.param.name); });
 
 TEST(Cli, UsageErrors) {
   EXPECT_EQ(run("").exit_code, 2);

@@ -67,13 +67,7 @@ json bench_plane(const BenchRequest& request) {
   std::uniform_real_distribution<double> uniform(0, 1);
   std::vector<Point> sites(request.n);
   for (auto& s : sites) s = Point(uniform(random), uniform(random));
-  Options options;
-  options.tolerance = request.tolerance;
-  if (!request.quiet)
-    options.callback = [](const IterationRecord& r) {
-      std::fprintf(stderr, "  iteration %3d  max rel. error %9.3e  step %-9g %8.3f s\n", r.iteration,
-                   r.max_relative_error, r.step, r.elapsed_s);
-    };
+  const Options options = bench_options(request);
   const Plane plane;
   const auto result = solve(plane, UniformDensity{}, std::span<const Point>(sites), equal_masses(request.n), options);
   return bench_json("plane", request.n, result);

@@ -288,6 +288,10 @@ sdot::Result<typename G::Point> sdot::solve(const G& geometry, const D& density,
     case LinearSolverKind::conjugate_gradient:
       return solve_with<ConjugateGradientSolver>(geometry, density, sites, target_masses, options,
                                                  std::move(initial_weights));
+    case LinearSolverKind::cholmod:
+#ifdef SDOT_HAVE_CHOLMOD
+      return solve_with<CholmodSolver>(geometry, density, sites, target_masses, options, std::move(initial_weights));
+#endif
     case LinearSolverKind::ldlt:
     default:
       return solve_with<DefaultLinearSolver>(geometry, density, sites, target_masses, options,
