@@ -397,22 +397,18 @@ private:
 
 }  // namespace
 
-std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain) {
-  // Power-diagram form of the envelope: maximising f_i is minimising
-  // pow_i(v) = |v|² − 2 f_i(v) = |v − c_i|² − w_i, with c_i = a_i.xy and w_i = 2 a_i.z + |c_i|².
+std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weight,
+                                          const ConvexPolygon& domain) {
   // Each cell starts as the domain clipped by the sites of the nearest centres; then, while some
   // site j is strictly below the envelope at a vertex v of the cell (pow_j(v) < pow_i(v)), the
   // cell is clipped by it. A kd-tree holding the largest w per node finds such j exactly
   // (branch and bound), so the loop ends with the exact cell whatever the weights.
-  const std::size_t n = dual.size();
+  // Clipping runs in coordinates u = v − c_i, where the bisector with j is
+  // −2d·u + |d|² + w_i − w_j ≥ 0 (d = c_j − c_i): no cancellation between large terms, so
+  // vertices are accurate to round-off of the cell's own size.
+  const std::size_t n = centers.size();
   std::vector<ChartCell> cells(n);
   if (n == 0) return cells;
-  std::vector<Vec2> centers(n);
-  std::vector<double> power_weight(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    centers[i] = dual[i].head<2>();
-    power_weight[i] = 2 * dual[i].z() + centers[i].squaredNorm();
-  }
   const PowerTree tree(centers, power_weight);
   const auto& boundary = domain.vertices();
   const std::size_t seed_count = std::min<std::size_t>(n, 13);
@@ -425,46 +421,64 @@ std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const Con
 #pragma omp for schedule(dynamic, 256)
     for (std::size_t position = 0; position < n; ++position) {
       const auto i = static_cast<std::size_t>(tree.order()[position]);
+      const Vec2 center = centers[i];
       ChartCell& cell = cells[i];
-      cell.vertices.assign(boundary.begin(), boundary.end());
+      cell.vertices.resize(boundary.size());
       cell.neighbors.resize(boundary.size());
-      for (std::size_t k = 0; k < boundary.size(); ++k) cell.neighbors[k] = boundary_label(static_cast<int>(k));
+      for (std::size_t k = 0; k < boundary.size(); ++k) {
+        cell.vertices[k] = boundary[k] - center;
+        cell.neighbors[k] = boundary_label(static_cast<int>(k));
+      }
+      auto cut = [&](int j) {
+        const Vec2 d = centers[static_cast<std::size_t>(j)] - center;
+        clip(cell, -2 * d, d.squaredNorm() + power_weight[i] - power_weight[static_cast<std::size_t>(j)], j);
+        used.push_back(j);
+      };
       used.assign(1, static_cast<int>(i));
-      tree.nearest(centers[i], seed_count, heap);
+      tree.nearest(center, seed_count, heap);
       std::sort(heap.begin(), heap.end());
       for (const auto& [distance, j] : heap) {
         if (j == static_cast<int>(i)) continue;
-        const Vec3 difference = dual[i] - dual[j];
-        clip(cell, difference.head<2>(), difference.z(), j);
-        used.push_back(j);
+        cut(j);
         if (cell.vertices.empty()) break;
       }
       // Clip by the site lowest below the envelope at each vertex until none is below: the
       // lowest one owns that vertex's neighbourhood, so each round removes wrong vertices.
       while (!cell.vertices.empty()) {
         pending.clear();
-        for (const auto& v : cell.vertices) {
-          const double own = (v - centers[i]).squaredNorm() - power_weight[i];
+        for (const auto& u : cell.vertices) {
+          const double own = u.squaredNorm() - power_weight[i];
           // Slack: the sites through v itself (its Laguerre neighbours) are not below it.
-          const double slack = 1e-13 * (std::abs(own) + (v - centers[i]).squaredNorm() + 1e-300);
-          const int j = tree.lowest(v, own - slack);
+          const double slack = 1e-13 * (std::abs(own) + u.squaredNorm() + 1e-300);
+          const int j = tree.lowest(u + center, own - slack);
           if (j >= 0 && std::find(pending.begin(), pending.end(), j) == pending.end()) pending.push_back(j);
         }
         if (pending.empty()) break;
         bool progress = false;
         for (int j : pending) {
-          if (std::find(used.begin(), used.end(), j) != used.end()) continue;  // roundoff: already clipped
-          const Vec3 difference = dual[i] - dual[j];
-          clip(cell, difference.head<2>(), difference.z(), j);
-          used.push_back(j);
+          if (std::find(used.begin(), used.end(), j) != used.end()) continue;  // round-off: already clipped
+          cut(j);
           progress = true;
           if (cell.vertices.empty()) break;
         }
         if (!progress) break;
       }
+      for (auto& u : cell.vertices) u += center;
     }
   }
   return cells;
+}
+
+std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain) {
+  // Maximising f_i is minimising pow_i(v) = |v|² − 2 f_i(v) = |v − c_i|² − w_i, with
+  // c_i = a_i.xy and w_i = 2 a_i.z + |c_i|².
+  std::vector<Vec2> centers(dual.size());
+  std::vector<double> power_weight(dual.size());
+  for (std::size_t i = 0; i < dual.size(); ++i) {
+    centers[i] = dual[i].head<2>();
+    power_weight[i] = 2 * dual[i].z() + centers[i].squaredNorm();
+  }
+  return build_power_diagram(centers, power_weight, domain);
 }
 
 Hull3 convex_hull_3d(std::span<const Vec3> points) {

@@ -20,6 +20,8 @@ std::string Options::validation_error() const {
     return field("linear_solver", "CHOLMOD is not available in this build (install libsuitesparse-dev and rebuild)");
   if (!(std::isfinite(cg_tolerance) && cg_tolerance > 0))
     return field("cg_tolerance", "must be a positive number");
+  if (!(std::isfinite(precision_floor_threshold) && precision_floor_threshold >= 0))
+    return field("precision_floor_threshold", "must be a non-negative number");
   if (!(std::isfinite(mass_sum_tolerance) && mass_sum_tolerance >= 0))
     return field("mass_sum_tolerance", "must be a non-negative number");
   return {};
@@ -38,6 +40,7 @@ std::string_view to_string(Status status) {
     case Status::iteration_limit: return "iteration_limit";
     case Status::line_search_failure: return "line_search_failure";
     case Status::linear_solve_failure: return "linear_solve_failure";
+    case Status::precision_floor: return "precision_floor";
   }
   return "unknown";
 }

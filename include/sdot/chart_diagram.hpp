@@ -68,6 +68,12 @@ struct Adjacency {
 /// Boundary edges are labelled `boundary_label(k)` for domain edge k.
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain);
 
+/// The power diagram of centres c_i with power weights w_i (cell i = {v : |v − c_i|² − w_i ≤
+/// |v − c_j|² − w_j ∀j}) over `domain`; the same cells as `build_chart_diagram` with
+/// a_i = (c_i, (w_i − |c_i|²)/2), computed without cancellation when the caller has w directly.
+std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weights,
+                                          const ConvexPolygon& domain);
+
 /// Same, with the neighbour candidates already known (e.g. from a 3-D hull).
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,
                                            const Adjacency& candidates);

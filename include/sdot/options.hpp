@@ -35,6 +35,10 @@ struct Options {
   /// when they differ by more than `mass_sum_tolerance` relatively.
   bool rescale_masses = true;
   double mass_sum_tolerance = 1e-9;
+  /// Below this max relative mass error, failing to make progress (no acceptable step, or three
+  /// damped steps ≤ 1/16 in a row) means the problem's precision floor was reached: the solver
+  /// stops with Status::precision_floor instead of a failure.
+  double precision_floor_threshold = 1e-7;
   /// Called after each iteration (progress output); may be empty.
   std::function<void(const IterationRecord&)> callback;
 
@@ -49,6 +53,8 @@ enum class Status {
   iteration_limit,      ///< max_iterations were used up
   line_search_failure,  ///< no step length satisfied the KMT conditions (precision floor)
   linear_solve_failure, ///< the Newton system could not be solved
+  precision_floor,      ///< stopped at the arithmetic's precision floor, above `tolerance` but
+                        ///< below `precision_floor_threshold`: as accurate as this problem allows
 };
 
 std::string_view to_string(Status status);
@@ -73,6 +79,8 @@ struct Summary {
   Timings timings;
 
   [[nodiscard]] bool converged() const { return status == Status::converged; }
+  /// Converged, or stopped at the precision floor: the result is usable.
+  [[nodiscard]] bool usable() const { return status == Status::converged || status == Status::precision_floor; }
 };
 
 }  // namespace sdot

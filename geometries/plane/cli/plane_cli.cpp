@@ -57,7 +57,7 @@ SolveOutput solve_plane(const json& problem, const RunContext& context) {
                             options, read_weights(problem, sites.size()));
   SolveOutput output;
   output.result = result_json("plane", result);
-  output.converged = result.summary.converged();
+  output.converged = result.summary.usable();
   if (context.want_svg) output.svg = draw(plane, sites, result);
   return output;
 }

@@ -54,17 +54,19 @@ Eigen::VectorXd Plane::default_weights(std::span<const Point> sites) const {
 }
 
 Diagram<Plane::Point> Plane::build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const {
-  // Work relative to the domain's centroid o: f_i(v) = (y_i − o)·(v − o) + ψ_i − |y_i − o|²/2.
+  // Power form relative to the domain's centroid o: centres y_i − o and power weights 2ψ_i
+  // (½|x − y_i|² − ψ_i = ½(|x − y_i|² − 2ψ_i)), accurate whatever the coordinates' magnitude.
   const Vec2 origin = domain_.centroid();
-  std::vector<Vec3> dual(sites.size());
+  std::vector<Vec2> centers(sites.size());
+  std::vector<double> power_weights(sites.size());
   for (std::size_t i = 0; i < sites.size(); ++i) {
-    const Vec2 y = sites[i] - origin;
-    dual[i] = Vec3(y.x(), y.y(), weights[static_cast<Eigen::Index>(i)] - y.squaredNorm() / 2);
+    centers[i] = sites[i] - origin;
+    power_weights[i] = 2 * weights[static_cast<Eigen::Index>(i)];
   }
   std::vector<Vec2> shifted = domain_.vertices();
   for (auto& v : shifted) v -= origin;
   Diagram<Point> diagram;
-  diagram.cells = build_chart_diagram(dual, ConvexPolygon(std::move(shifted)));
+  diagram.cells = build_power_diagram(centers, power_weights, ConvexPolygon(std::move(shifted)));
   for (auto& cell : diagram.cells)
     for (auto& v : cell.vertices) v += origin;
   return diagram;

@@ -185,6 +185,27 @@ TEST(Plane, IterationLimitIsAStatusNotAnError) {
   EXPECT_NE(result.summary.message.find("iteration limit"), std::string::npos);
 }
 
+TEST(Plane, PrecisionFloorIsAStatusNotAFailure) {
+  const auto sites = random_unit_square(2000, 12);
+  Options options;
+  options.tolerance = 1e-17;  // below double precision
+  const auto result = solve(Plane(), UniformDensity{}, std::span(sites), equal_masses(2000), options);
+  EXPECT_EQ(result.summary.status, Status::precision_floor) << result.summary.message;
+  EXPECT_TRUE(result.summary.usable());
+  EXPECT_FALSE(result.summary.converged());
+  EXPECT_LT(result.summary.max_relative_error, 1e-11);
+  EXPECT_NE(result.summary.message.find("precision floor"), std::string::npos);
+}
+
+TEST(Plane, LargeProblemsReachTightTolerances) {
+  // Summation round-off of Σν − Σμ (~1e-13 at 10⁴ cells) must not land on one site.
+  const auto sites = random_unit_square(16000, 13);
+  Options options;
+  options.tolerance = 1e-12;
+  const auto result = solve(Plane(), UniformDensity{}, std::span(sites), equal_masses(16000), options);
+  EXPECT_TRUE(result.summary.converged()) << result.summary.message;
+}
+
 TEST(Plane, CallbackSeesEveryIteration) {
   const auto sites = random_unit_square(100, 1);
   std::vector<IterationRecord> seen;

@@ -1,0 +1,256 @@
+// sdot-sphere-param: area-preserving spherical parameterization of a closed genus-0 mesh.
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "mesh.hpp"
+#include "pipeline.hpp"
+#include "report.hpp"
+
+using namespace sphparam;
+using json = nlohmann::json;
+
+namespace {
+
+const char* usage =
+    "usage: sdot-sphere-param INPUT -o OUTPUT [--report REPORT.json] [--svg HISTOGRAM.svg]\n"
+    "                         [--target-weights FILE] [--refine N] [--no-optimize]\n"
+    "                         [--ot-tolerance T] [--sweeps N] [--ply-ascii] [--quiet]\n"
+    "\n"
+    "Maps a closed genus-0 triangle mesh onto the unit sphere without area distortion and without\n"
+    "flipped faces (semi-discrete optimal transport with sdot's sphere geometry).\n"
+    "INPUT and OUTPUT are OFF, OBJ or PLY (by extension; PLY ascii or binary little-endian).\n"
+    "The output has the same vertices and triangles in the same order, every vertex on the sphere.\n"
+    "  --report FILE          JSON report: input statistics, stage times, Newton iterations,\n"
+    "                         mass error, distortion metrics (as shared/tools/eval_sphere_map.py)\n"
+    "  --svg FILE             histogram of the per-face area distortion, initial and final map\n"
+    "  --target-weights FILE  one positive factor per vertex: the region around a vertex gets\n"
+    "                         its mesh area times the factor (area-controllable map)\n"
+    "  --refine N             Dirac refinement levels of the OT stage (default 0; -1: 1 up to 15k vertices)\n"
+    "  --no-optimize          skip the final area-correcting optimization\n"
+    "  --separation-threshold X  run site-separation passes while the shortest edge of the map\n"
+    "                         is below X*sqrt(4pi/N) (default 5e-5; 0 disables them)\n"
+    "  --separation-delta D   separation radius of their representatives, times sqrt(4pi/N) (default 0.1)\n"
+    "  --ot-tolerance T       max relative mass error of the OT solve (default 1e-4)\n"
+    "  --sweeps N             sweeps of the area optimization at most (default 200)\n"
+    "  --ply-ascii            write PLY as ascii (default binary little-endian)\n"
+    "  --quiet                no progress output\n";
+
+double since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+json metrics_json(const Metrics& m) {
+  return {{"area_mean_abs", m.area_mean_abs},       {"area_std", m.area_std},
+          {"area_max_abs", m.area_max_abs},         {"area_nonfinite", m.area_nonfinite},
+          {"angle_mean_abs_deg", m.angle_mean_abs_deg}, {"angle_p95_deg", m.angle_p95_deg},
+          {"flips", m.flips},                       {"sph_area_sum_over_4pi", m.sph_area_sum_over_4pi}};
+}
+
+std::vector<double> read_factors(const std::string& path, std::size_t count) {
+  std::ifstream in(path);
+  if (!in) throw FileError(path + ": cannot open the target weights");
+  std::vector<double> v;
+  std::string tok;
+  while (in >> tok) {
+    if (tok[0] == '#') {
+      std::getline(in, tok);
+      continue;
+    }
+    char* end = nullptr;
+    const double x = std::strtod(tok.c_str(), &end);
+    if (end == tok.c_str() || *end != '\0')
+      throw FileError(path + ": target weight " + std::to_string(v.size()) + " is not a number: '" + tok + "'");
+    if (!(std::isfinite(x) && x > 0))
+      throw FileError(path + ": target weight " + std::to_string(v.size()) + " must be positive and finite, got " + tok);
+    v.push_back(x);
+  }
+  if (v.size() != count)
+    throw FileError(path + ": " + std::to_string(v.size()) + " target weights for " + std::to_string(count) +
+                    " vertices (one per vertex of the input file is needed)");
+  return v;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string input, output, report_path, svg_path, weights_path;
+  PipelineOptions options;
+  bool quiet = false, ply_ascii = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&](const char* what) -> std::string {
+      if (i + 1 >= argc) {
+        std::cerr << "error: " << a << " needs " << what << "\n" << usage;
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "-h" || a == "--help") {
+      std::cout << usage;
+      return 0;
+    } else if (a == "-o" || a == "--output") output = value("a file");
+    else if (a == "--report") report_path = value("a file");
+    else if (a == "--svg") svg_path = value("a file");
+    else if (a == "--target-weights") weights_path = value("a file");
+    else if (a == "--refine") options.refine = std::atoi(value("a number").c_str());
+    else if (a == "--no-optimize") options.optimize = false;
+    else if (a == "--separation-delta") options.separation_delta = std::atof(value("a number").c_str());
+    else if (a == "--separation-threshold") options.min_spacing = std::atof(value("a number").c_str());
+    else if (a == "--ot-tolerance") options.ot_tolerance = std::atof(value("a number").c_str());
+    else if (a == "--sweeps") options.optimizer.max_sweeps = std::atoi(value("a number").c_str());
+    else if (a == "--ply-ascii") ply_ascii = true;
+    else if (a == "--quiet") quiet = true;
+    else if (!a.empty() && a[0] == '-') {
+      std::cerr << "error: unknown option " << a << "\n" << usage;
+      return 2;
+    } else if (input.empty()) input = a;
+    else {
+      std::cerr << "error: unexpected argument " << a << "\n" << usage;
+      return 2;
+    }
+  }
+  if (input.empty() || output.empty()) {
+    std::cerr << usage;
+    return 2;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  auto progress = [&](const std::string& s) {
+    if (quiet) return;
+    char b[32];
+    std::snprintf(b, sizeof b, "[%8.3f s] ", since(start));
+    std::cerr << b << s << std::endl;
+  };
+  json report;
+  report["input"] = input;
+  report["output"] = output;
+  auto write_report = [&] {
+    if (report_path.empty()) return;
+    std::ofstream out(report_path);
+    out << report.dump(2) << "\n";
+    if (!out) std::cerr << "error: cannot write the report " << report_path << "\n";
+  };
+  try {
+    auto t = std::chrono::steady_clock::now();
+    ReadInfo info;
+    Mesh raw = read_mesh(input, &info);
+    const double read_s = since(t);
+    const Validation v = validate(raw, info);
+    json defects = json::array();
+    for (const auto& d : v.defects) {
+      defects.push_back({{"defect", d.name}, {"count", d.count}, {"fatal", d.fatal}, {"message", d.message}});
+      std::cerr << (d.fatal ? "error: " : "warning: ") << input << ": " << d.message << "\n";
+    }
+    report["input_statistics"] = {{"format", info.format},
+                                  {"vertices_in_file", raw.vertices.size()},
+                                  {"vertices", v.vertices},
+                                  {"faces", v.faces},
+                                  {"edges", v.edges},
+                                  {"euler_characteristic", v.euler_characteristic},
+                                  {"components", v.components},
+                                  {"signed_volume", v.signed_volume},
+                                  {"orientation", v.inward ? -1 : 1},
+                                  {"min_angle_deg", v.min_angle_deg},
+                                  {"area_ratio_max_min", v.area_ratio},
+                                  {"defects", defects}};
+    if (!v.ok()) {
+      std::cerr << "error: " << input << " is not a valid closed genus-0 manifold triangle mesh; nothing written\n";
+      report["status"] = "invalid_input";
+      write_report();
+      return 1;
+    }
+    progress("read " + input + " (" + std::to_string(v.vertices) + " vertices, " + std::to_string(v.faces) +
+             " faces)");
+    std::vector<int> kept;
+    Mesh mesh = drop_unreferenced(raw, &kept);
+    if (!weights_path.empty()) {
+      const auto all = read_factors(weights_path, raw.vertices.size());
+      options.vertex_factors.resize(kept.size());
+      for (std::size_t i = 0; i < kept.size(); ++i) options.vertex_factors[i] = all[static_cast<std::size_t>(kept[i])];
+    }
+    Mesh work = mesh;  // outward oriented
+    if (v.inward)
+      for (auto& f : work.faces) std::swap(f[1], f[2]);
+    options.progress = progress;
+    t = std::chrono::steady_clock::now();
+    PipelineResult R = parameterize(work, options);
+    const double compute_s = since(t);
+
+    t = std::chrono::steady_clock::now();
+    Mesh out = mesh;
+    out.vertices = R.sphere;
+    for (auto& p : out.vertices) p.normalize();
+    write_mesh(output, out, ply_ascii);
+    const double write_s = since(t);
+    const double total_s = since(start);
+    progress("wrote " + output);
+
+    const double sign = v.inward ? -1.0 : 1.0;
+    const Metrics m0 = evaluate_map(mesh, R.initial, sign);
+    const Metrics m1 = evaluate_map(mesh, R.sphere, sign);
+    report["status"] = m1.flips == 0 ? "ok" : "flipped_faces";
+    json stages = json::array();
+    json times = {{"read_s", read_s}};
+    for (const auto& s : R.stages) {
+      stages.push_back({{"stage", s.name},
+                        {"seconds", s.seconds},
+                        {"target_area_mean_abs", s.area_mean_abs},
+                        {"flips", s.flips},
+                        {"note", s.note}});
+      times[s.name + "_s"] = s.seconds;
+    }
+    times["compute_s"] = compute_s;
+    times["write_s"] = write_s;
+    times["total_s"] = total_s;
+    report["times"] = times;
+    report["stages"] = stages;
+    report["ot"] = {{"status", R.ot.status},
+                    {"message", R.ot.message},
+                    {"newton_iterations", R.ot.iterations},
+                    {"max_relative_mass_error", R.ot.max_relative_error},
+                    {"rms_relative_mass_error", R.ot.rms_relative_error},
+                    {"diracs", R.ot.sites},
+                    {"refinement_levels", R.ot.refine},
+                    {"height_range", R.ot.height_range},
+                    {"error_history", R.ot.error_history}};
+    report["optimizer"] = {{"sweeps", R.optimizer.sweeps},
+                           {"energy_start", R.optimizer.energy_start},
+                           {"energy_end", R.optimizer.energy_end},
+                           {"untangle_remaining_flips", R.untangle_remaining}};
+    report["initial_map"] = metrics_json(m0);
+    report["final_map"] = metrics_json(m1);
+    if (!options.vertex_factors.empty()) {
+      const auto targets = face_targets(work, options.vertex_factors);
+      report["final_map"]["target_area_mean_abs"] = target_area_error(work, R.sphere, targets);
+    }
+    write_report();
+    if (!svg_path.empty()) {
+      std::ofstream svg(svg_path);
+      svg << histogram_svg(m0.d, m1.d, "Area distortion: " + input);
+      if (!svg) std::cerr << "error: cannot write " << svg_path << "\n";
+    }
+    char line[256];
+    std::snprintf(line, sizeof line,
+                  "done in %.3f s: area mean|d| %.4f, std %.4f, max|d| %.3f, angle %.2f deg, flips %zu", total_s,
+                  m1.area_mean_abs, m1.area_std, m1.area_max_abs, m1.angle_mean_abs_deg, m1.flips);
+    progress(line);
+    return m1.flips == 0 ? 0 : 3;
+  } catch (const FileError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    report["status"] = "file_error";
+    report["error"] = e.what();
+    write_report();
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    report["status"] = "error";
+    report["error"] = e.what();
+    write_report();
+    return 1;
+  }
+}

@@ -1,0 +1,104 @@
+#pragma once
+/// \file mesh.hpp
+/// Triangle meshes for the spherical parameterization example: reading and writing OFF, OBJ
+/// and PLY (ascii and binary little-endian, `face` lists or `tristrips`), validation of closed
+/// genus-0 manifolds, and the distortion metrics of `shared/tools/eval_sphere_map.py`.
+
+#include <Eigen/Core>
+#include <array>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace sphparam {
+
+using Vec3 = Eigen::Vector3d;
+using Face = std::array<int, 3>;
+
+struct Mesh {
+  std::vector<Vec3> vertices;
+  std::vector<Face> faces;
+};
+
+/// A file that cannot be read or written, or is malformed (the message names the file and line).
+class FileError : public std::runtime_error {
+public:
+  using std::runtime_error::runtime_error;
+};
+
+/// What the reader had to do to get triangles.
+struct ReadInfo {
+  std::size_t polygons = 0;          ///< faces with more than 3 vertices (fan-triangulated)
+  std::size_t polygon_triangles = 0; ///< triangles those polygons became
+  std::size_t short_faces = 0;       ///< faces with fewer than 3 vertices (ignored)
+  std::string format;                ///< "off", "obj", "ply ascii", "ply binary_little_endian"
+};
+
+/// Reads OFF, OBJ or PLY by extension (case-insensitive). Polygons are fan-triangulated as
+/// (v0, vk, vk+1), like the evaluator. Throws FileError.
+Mesh read_mesh(const std::string& path, ReadInfo* info = nullptr);
+
+/// Writes OFF, OBJ or PLY by extension; PLY is binary little-endian unless `ply_ascii`.
+/// Coordinates are written with 17 significant digits (round trip exact). Throws FileError.
+void write_mesh(const std::string& path, const Mesh& mesh, bool ply_ascii = false);
+
+/// Lower-case file extension without the dot ("" if none).
+std::string extension(const std::string& path);
+
+// ------------------------------------------------------------------------------- validation
+
+/// One defect found in the input, with its count.
+struct Defect {
+  std::string name;     ///< "boundary edges", "non-manifold vertices", ...
+  std::size_t count = 0;
+  bool fatal = true;    ///< false: repaired or accepted (polygons, unreferenced vertices, ...)
+  std::string message;  ///< full sentence, names the defect and gives the count
+};
+
+struct Validation {
+  std::vector<Defect> defects;
+  std::size_t vertices = 0, faces = 0, edges = 0;
+  std::size_t unreferenced = 0;
+  int euler_characteristic = 0;
+  int components = 0;
+  double signed_volume = 0;
+  bool inward = false;  ///< consistently oriented but with negative signed volume
+  double min_angle_deg = 0;
+  double area_ratio = 0;  ///< largest over smallest face area
+  [[nodiscard]] bool ok() const {
+    for (const auto& d : defects)
+      if (d.fatal) return false;
+    return true;
+  }
+};
+
+/// Checks a mesh for the defects listed in the issue. Counts every defect found.
+Validation validate(const Mesh& mesh, const ReadInfo& info = {});
+
+/// Removes vertices that no face references; `kept[i]` is the old index of new vertex i.
+Mesh drop_unreferenced(const Mesh& mesh, std::vector<int>* kept = nullptr);
+
+// ------------------------------------------------------------------------------- metrics
+
+/// Distortion of a spherical map, defined exactly as in shared/tools/sphmesh.py (evaluate_map).
+struct Metrics {
+  double area_mean_abs = 0, area_std = 0, area_max_abs = 0;
+  std::size_t area_nonfinite = 0;
+  double angle_mean_abs_deg = 0, angle_p95_deg = 0;
+  std::size_t flips = 0;
+  double sph_area_sum_over_4pi = 0;
+  std::vector<double> d;  ///< per-face log area ratio (may hold ±inf)
+};
+
+/// `orientation_sign` is +1 for an outward-oriented input, −1 for an inward one.
+Metrics evaluate_map(const Mesh& mesh, const std::vector<Vec3>& sphere, double orientation_sign);
+
+/// Exact spherical-triangle area (unsigned), Van Oosterom–Strackee.
+double spherical_triangle_area(const Vec3& a, const Vec3& b, const Vec3& c);
+/// Signed version: negative when det[a, b, c] < 0.
+double signed_spherical_triangle_area(const Vec3& a, const Vec3& b, const Vec3& c);
+
+/// Face areas of a mesh.
+std::vector<double> face_areas(const Mesh& mesh);
+
+}  // namespace sphparam

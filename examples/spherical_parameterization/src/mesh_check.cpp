@@ -1,0 +1,334 @@
+// Validation of closed genus-0 manifolds and the evaluator's distortion metrics.
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <unordered_map>
+
+#include "mesh.hpp"
+
+namespace sphparam {
+namespace {
+
+struct UnionFind {
+  std::vector<int> parent;
+  explicit UnionFind(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
+  int find(int x) {
+    while (parent[static_cast<std::size_t>(x)] != x) {
+      parent[static_cast<std::size_t>(x)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
+      x = parent[static_cast<std::size_t>(x)];
+    }
+    return x;
+  }
+  void unite(int a, int b) { parent[static_cast<std::size_t>(find(a))] = find(b); }
+};
+
+std::uint64_t edge_key(int a, int b) {
+  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
+}
+
+std::string plural(std::size_t n, const std::string& one, const std::string& many) {
+  return std::to_string(n) + " " + (n == 1 ? one : many);
+}
+
+double face_angle(const Vec3& p, const Vec3& q, const Vec3& r) {
+  const Vec3 u = q - p, w = r - p;
+  const double c = u.dot(w) / std::max(u.norm() * w.norm(), 1e-300);
+  return std::acos(std::clamp(c, -1.0, 1.0));
+}
+
+}  // namespace
+
+std::vector<double> face_areas(const Mesh& mesh) {
+  std::vector<double> a(mesh.faces.size());
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+    const auto& t = mesh.faces[f];
+    const Vec3& p0 = mesh.vertices[static_cast<std::size_t>(t[0])];
+    a[f] = 0.5 * (mesh.vertices[static_cast<std::size_t>(t[1])] - p0)
+                     .cross(mesh.vertices[static_cast<std::size_t>(t[2])] - p0)
+                     .norm();
+  }
+  return a;
+}
+
+Mesh drop_unreferenced(const Mesh& mesh, std::vector<int>* kept) {
+  std::vector<int> map(mesh.vertices.size(), -1);
+  Mesh out;
+  std::vector<int> old;
+  for (const auto& f : mesh.faces)
+    for (int i : f)
+      if (map[static_cast<std::size_t>(i)] < 0) map[static_cast<std::size_t>(i)] = 0;
+  int next = 0;
+  for (std::size_t i = 0; i < map.size(); ++i)
+    if (map[i] == 0) {
+      map[i] = next++;
+      out.vertices.push_back(mesh.vertices[i]);
+      old.push_back(static_cast<int>(i));
+    }
+  out.faces.reserve(mesh.faces.size());
+  for (const auto& f : mesh.faces)
+    out.faces.push_back({map[static_cast<std::size_t>(f[0])], map[static_cast<std::size_t>(f[1])],
+                         map[static_cast<std::size_t>(f[2])]});
+  if (kept) *kept = std::move(old);
+  return out;
+}
+
+Validation validate(const Mesh& mesh, const ReadInfo& info) {
+  Validation r;
+  auto add = [&](std::string name, std::size_t count, bool fatal, std::string message) {
+    r.defects.push_back({std::move(name), count, fatal, std::move(message)});
+  };
+  const std::size_t nv = mesh.vertices.size(), nf = mesh.faces.size();
+  r.faces = nf;
+  if (info.polygons > 0)
+    add("polygons", info.polygons, false,
+        plural(info.polygons, "polygon", "polygons") + " with more than 3 vertices (triangulated into " +
+            std::to_string(info.polygon_triangles) + " triangles)");
+  if (info.short_faces > 0)
+    add("short faces", info.short_faces, false,
+        plural(info.short_faces, "face has", "faces have") + " fewer than 3 vertices (ignored)");
+  if (nf == 0) {
+    add("no faces", 0, true, "the mesh has no triangles");
+    return r;
+  }
+  std::size_t nan = 0;
+  for (const auto& v : mesh.vertices)
+    if (!v.allFinite()) ++nan;
+  if (nan > 0)
+    add("NaN coordinates", nan, true,
+        plural(nan, "vertex has", "vertices have") + " NaN or infinite coordinates");
+
+  std::size_t out_of_range = 0, repeated = 0;
+  std::vector<char> used(nv, 0);
+  for (const auto& f : mesh.faces) {
+    bool bad = false;
+    for (int i : f)
+      if (i < 0 || static_cast<std::size_t>(i) >= nv) bad = true;
+    if (bad) {
+      ++out_of_range;
+      continue;
+    }
+    if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2]) ++repeated;
+    for (int i : f) used[static_cast<std::size_t>(i)] = 1;
+  }
+  if (out_of_range > 0) {
+    add("vertex index out of range", out_of_range, true,
+        plural(out_of_range, "face refers", "faces refer") + " to a vertex index out of range");
+    return r;
+  }
+  if (repeated > 0)
+    add("degenerate faces", repeated, true,
+        plural(repeated, "face uses", "faces use") + " the same vertex twice (degenerate connectivity)");
+  r.unreferenced = static_cast<std::size_t>(std::count(used.begin(), used.end(), 0));
+  r.vertices = nv - r.unreferenced;
+  if (r.unreferenced > 0)
+    add("unreferenced vertices", r.unreferenced, false,
+        plural(r.unreferenced, "unreferenced vertex", "unreferenced vertices") +
+            " (dropped: the output has only the referenced vertices, in their input order)");
+
+  // Edges: undirected multiplicity and directed multiplicity.
+  std::unordered_map<std::uint64_t, int> undirected, directed;
+  undirected.reserve(3 * nf);
+  directed.reserve(3 * nf);
+  for (const auto& f : mesh.faces)
+    for (int k = 0; k < 3; ++k) {
+      const int a = f[static_cast<std::size_t>(k)], b = f[static_cast<std::size_t>((k + 1) % 3)];
+      if (a == b) continue;
+      ++undirected[edge_key(std::min(a, b), std::max(a, b))];
+      ++directed[edge_key(a, b)];
+    }
+  r.edges = undirected.size();
+  std::size_t boundary = 0, nonmanifold_edges = 0, misoriented = 0;
+  for (const auto& [key, count] : undirected) {
+    if (count == 1) ++boundary;
+    if (count > 2) ++nonmanifold_edges;
+    if (count == 2) {
+      const int a = static_cast<int>(key >> 32), b = static_cast<int>(key & 0xffffffffu);
+      auto ab = directed.find(edge_key(a, b));
+      auto ba = directed.find(edge_key(b, a));
+      const int nab = ab == directed.end() ? 0 : ab->second, nba = ba == directed.end() ? 0 : ba->second;
+      if (nab != 1 || nba != 1) ++misoriented;
+    }
+  }
+  if (boundary > 0)
+    add("boundary edges", boundary, true,
+        plural(boundary, "boundary edge", "boundary edges") + " (the surface is not closed: fill its holes)");
+  if (nonmanifold_edges > 0)
+    add("non-manifold edges", nonmanifold_edges, true,
+        plural(nonmanifold_edges, "non-manifold edge", "non-manifold edges") + " (shared by more than 2 faces)");
+  if (misoriented > 0)
+    add("inconsistent orientation", misoriented, true,
+        plural(misoriented, "edge has", "edges have") +
+            " both adjacent faces traversing it in the same direction (inconsistent face orientation)");
+
+  // Non-manifold vertices: the faces around a vertex must form one fan (connected through edges).
+  {
+    std::vector<int> offsets(nv + 1, 0);
+    for (const auto& f : mesh.faces)
+      if (!(f[0] == f[1] || f[1] == f[2] || f[0] == f[2]))
+        for (int i : f) ++offsets[static_cast<std::size_t>(i) + 1];
+    for (std::size_t i = 0; i < nv; ++i) offsets[i + 1] += offsets[i];
+    std::vector<int> incident(static_cast<std::size_t>(offsets[nv]));
+    std::vector<int> fill(offsets.begin(), offsets.end() - 1);
+    for (std::size_t f = 0; f < nf; ++f) {
+      const auto& t = mesh.faces[f];
+      if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) continue;
+      for (int i : t) incident[static_cast<std::size_t>(fill[static_cast<std::size_t>(i)]++)] = static_cast<int>(f);
+    }
+    std::size_t bad = 0;
+    std::vector<std::pair<int, int>> others;
+    for (std::size_t v = 0; v < nv; ++v) {
+      const int s = offsets[v], e = offsets[v + 1];
+      if (e - s <= 1) continue;
+      // union faces sharing an edge (v, x): sort (x, local face) pairs.
+      others.clear();
+      for (int k = s; k < e; ++k) {
+        const auto& t = mesh.faces[static_cast<std::size_t>(incident[static_cast<std::size_t>(k)])];
+        for (int x : t)
+          if (x != static_cast<int>(v)) others.emplace_back(x, k - s);
+      }
+      std::sort(others.begin(), others.end());
+      UnionFind uf(static_cast<std::size_t>(e - s));
+      for (std::size_t k = 1; k < others.size(); ++k)
+        if (others[k].first == others[k - 1].first) uf.unite(others[k].second, others[k - 1].second);
+      int roots = 0;
+      for (int k = 0; k < e - s; ++k)
+        if (uf.find(k) == k) ++roots;
+      if (roots > 1) ++bad;
+    }
+    if (bad > 0)
+      add("non-manifold vertices", bad, true,
+          plural(bad, "non-manifold vertex", "non-manifold vertices") +
+              " (the faces around it form more than one fan)");
+  }
+
+  // Components.
+  {
+    UnionFind uf(nv);
+    for (const auto& f : mesh.faces) uf.unite(f[0], f[1]), uf.unite(f[1], f[2]);
+    int comps = 0;
+    for (std::size_t i = 0; i < nv; ++i)
+      if (used[i] && uf.find(static_cast<int>(i)) == static_cast<int>(i)) ++comps;
+    r.components = comps;
+    if (comps > 1)
+      add("several components", static_cast<std::size_t>(comps), true,
+          std::to_string(comps) + " connected components (a spherical map needs exactly one)");
+  }
+
+  r.euler_characteristic = static_cast<int>(r.vertices) - static_cast<int>(r.edges) + static_cast<int>(nf);
+  if (r.euler_characteristic != 2) {
+    std::string genus;
+    if (r.components == 1 && boundary == 0 && r.euler_characteristic % 2 == 0)
+      genus = "genus " + std::to_string((2 - r.euler_characteristic) / 2);
+    else
+      genus = "not a closed genus-0 surface";
+    add("Euler characteristic", static_cast<std::size_t>(std::abs(r.euler_characteristic - 2)), true,
+        "Euler characteristic V - E + F = " + std::to_string(r.euler_characteristic) + " != 2 (" + genus +
+            "; only genus 0 maps to the sphere)");
+  }
+
+  // Geometry: zero-area faces, signed volume, shape statistics.
+  if (nan == 0) {
+    const auto areas = face_areas(mesh);
+    const double amax = *std::max_element(areas.begin(), areas.end());
+    double amin = amax;
+    std::size_t zero = 0;
+    double volume = 0, min_angle = M_PI;
+    for (std::size_t f = 0; f < nf; ++f) {
+      const auto& t = mesh.faces[f];
+      const Vec3& p0 = mesh.vertices[static_cast<std::size_t>(t[0])];
+      const Vec3& p1 = mesh.vertices[static_cast<std::size_t>(t[1])];
+      const Vec3& p2 = mesh.vertices[static_cast<std::size_t>(t[2])];
+      if (areas[f] <= 1e-14 * std::max(amax, 1e-300)) ++zero;
+      amin = std::min(amin, areas[f]);
+      volume += p0.dot(p1.cross(p2)) / 6.0;
+      min_angle = std::min({min_angle, face_angle(p0, p1, p2), face_angle(p1, p2, p0), face_angle(p2, p0, p1)});
+    }
+    r.signed_volume = volume;
+    r.min_angle_deg = min_angle * 180 / M_PI;
+    r.area_ratio = amax / std::max(amin, 1e-300);
+    if (zero > 0)
+      add("zero-area faces", zero, false,
+          plural(zero, "zero-area face", "zero-area faces") +
+              " (kept; their target area is floored and their area distortion is not finite)");
+    if (volume < 0 && misoriented == 0) {
+      r.inward = true;
+      add("inward orientation", 0, false,
+          "the faces are oriented inward (negative signed volume); accepted: the output keeps the input "
+          "orientation, so its triangles face inward on the sphere too");
+    }
+  }
+  return r;
+}
+
+double signed_spherical_triangle_area(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const double num = a.dot(b.cross(c));
+  const double den = 1 + a.dot(b) + b.dot(c) + c.dot(a);
+  return 2 * std::atan2(num, den);
+}
+
+double spherical_triangle_area(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const double num = std::abs(a.dot(b.cross(c)));
+  const double den = 1 + a.dot(b) + b.dot(c) + c.dot(a);
+  return 2 * std::atan2(num, den);
+}
+
+Metrics evaluate_map(const Mesh& mesh, const std::vector<Vec3>& sphere, double orientation_sign) {
+  Metrics m;
+  const std::size_t nf = mesh.faces.size();
+  std::vector<Vec3> s(sphere.size());
+  for (std::size_t i = 0; i < s.size(); ++i) s[i] = sphere[i] / sphere[i].norm();
+  const auto am = face_areas(mesh);
+  const double am_total = std::accumulate(am.begin(), am.end(), 0.0);
+  m.d.resize(nf);
+  std::vector<double> angd(3 * nf);
+  double as_total = 0;
+  for (std::size_t f = 0; f < nf; ++f) {
+    const auto& t = mesh.faces[f];
+    const Vec3 &q0 = s[static_cast<std::size_t>(t[0])], &q1 = s[static_cast<std::size_t>(t[1])],
+               &q2 = s[static_cast<std::size_t>(t[2])];
+    const double as = spherical_triangle_area(q0, q1, q2);
+    as_total += as;
+    const double det = q0.dot(q1.cross(q2));
+    if (det * orientation_sign <= 0) ++m.flips;
+    m.d[f] = std::log((as / (4 * M_PI)) / (am[f] / am_total));
+    const Vec3 &p0 = mesh.vertices[static_cast<std::size_t>(t[0])], &p1 = mesh.vertices[static_cast<std::size_t>(t[1])],
+               &p2 = mesh.vertices[static_cast<std::size_t>(t[2])];
+    angd[3 * f] = std::abs(face_angle(p0, p1, p2) - face_angle(q0, q1, q2)) * 180 / M_PI;
+    angd[3 * f + 1] = std::abs(face_angle(p1, p2, p0) - face_angle(q1, q2, q0)) * 180 / M_PI;
+    angd[3 * f + 2] = std::abs(face_angle(p2, p0, p1) - face_angle(q2, q0, q1)) * 180 / M_PI;
+  }
+  m.sph_area_sum_over_4pi = as_total / (4 * M_PI);
+  double sum = 0, sum_abs = 0, max_abs = 0;
+  std::size_t n = 0;
+  for (double d : m.d) {
+    if (!std::isfinite(d)) {
+      ++m.area_nonfinite;
+      continue;
+    }
+    ++n;
+    sum += d;
+    sum_abs += std::abs(d);
+    max_abs = std::max(max_abs, std::abs(d));
+  }
+  if (n > 0) {
+    const double mean = sum / static_cast<double>(n);
+    double var = 0;
+    for (double d : m.d)
+      if (std::isfinite(d)) var += (d - mean) * (d - mean);
+    m.area_mean_abs = sum_abs / static_cast<double>(n);
+    m.area_std = std::sqrt(var / static_cast<double>(n));
+    m.area_max_abs = max_abs;
+  } else {
+    m.area_mean_abs = m.area_std = m.area_max_abs = std::nan("");
+  }
+  m.angle_mean_abs_deg = std::accumulate(angd.begin(), angd.end(), 0.0) / static_cast<double>(angd.size());
+  std::sort(angd.begin(), angd.end());
+  const double pos = 0.95 * static_cast<double>(angd.size() - 1);
+  const auto lo = static_cast<std::size_t>(std::floor(pos));
+  const std::size_t hi = std::min(lo + 1, angd.size() - 1);
+  m.angle_p95_deg = angd[lo] + (pos - static_cast<double>(lo)) * (angd[hi] - angd[lo]);
+  return m;
+}
+
+}  // namespace sphparam

@@ -1,0 +1,77 @@
+#pragma once
+/// \file param.hpp
+/// The stages of the spherical area-preserving parameterization (docs/spherical_parameterization.md):
+/// initial map (Tutte + inverse stereographic + Möbius balancing), OT with sdot::Sphere,
+/// centroids, untangling, and a flip-free area-correcting optimization.
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "mesh.hpp"
+
+namespace sphparam {
+
+/// Vertex adjacency (CSR, sorted) and per-vertex incident faces of a closed triangle mesh.
+struct Topology {
+  std::vector<int> nbr_offsets, nbrs;
+  std::vector<int> face_offsets, vfaces;
+  explicit Topology(const Mesh& mesh);
+  [[nodiscard]] int degree(int v) const { return nbr_offsets[v + 1] - nbr_offsets[v]; }
+};
+
+/// Target spherical area of each face: 4π · a_f · factor_f / Σ (a · factor), with a floor for
+/// zero-area faces. `vertex_factors` (may be empty) scale regions (the area-controllable map).
+std::vector<double> face_targets(const Mesh& mesh, const std::vector<double>& vertex_factors);
+/// Target vertex masses: 1/3 of the incident face targets (sum 4π).
+std::vector<double> vertex_targets(const Mesh& mesh, const std::vector<double>& face_target);
+
+/// Planar Tutte embedding (positive clamped-cotangent weights) with the largest face as the
+/// outer triangle, mapped to the unit sphere by inverse stereographic projection, oriented
+/// outward. The mesh must be outward oriented. With `targets` (face target areas), the weights
+/// are then multiplied by the stretch (image area / target) of the previous map, up to
+/// `max_reweightings` times, while more than 0.5% of the faces are crushed below e^-4: this
+/// opens up the exponentially crushed protrusions of harmonic maps (fingers, ears).
+std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets = {},
+                                   int max_reweightings = 0, int* reweightings = nullptr);
+
+/// Möbius balancing: applies ball automorphisms until the weighted mean of the points is at the
+/// origin (|mean| ≤ tol). Returns the number of iterations.
+int mobius_balance(std::vector<Vec3>& points, const std::vector<double>& weights, double tol = 1e-9,
+                   int max_iterations = 200);
+
+/// Number of faces with det[S0,S1,S2] <= 0 (the mesh is outward oriented).
+std::size_t count_flips(const Mesh& mesh, const std::vector<Vec3>& s);
+
+/// Laplacian untangling of flipped faces: moves the vertices of flipped faces (and rings around
+/// them, growing when stuck) to the normalised mean of their neighbours. Returns remaining flips.
+/// With `allow_free` false, moves never increase the number of flipped faces around a vertex.
+std::size_t untangle(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& s, int max_rounds = 400,
+                     bool allow_free = true);
+
+struct OptimizeOptions {
+  int max_sweeps = 200;
+  double conformal_weight = 0.005;  ///< λ of the MIPS term (keeps triangles well shaped)
+  double time_budget_s = 1e9;
+  /// > 0: untangling mode, areas regularised as (A + sqrt(A² + 4ε²T²))/2 (no barrier, no MIPS).
+  double regularization = 0;
+  /// A vertex stays active while its move lowers its local energy by more than this fraction.
+  double activity_threshold = 1e-3;
+};
+struct OptimizeResult {
+  int sweeps = 0;
+  std::size_t visits = 0;  ///< vertex updates tried
+  double energy_start = 0, energy_end = 0;
+};
+/// Flip-free area-correcting optimization on the sphere: Gauss–Seidel over vertices (with an
+/// active set) of E = Σ_f log²(A_f/T_f) + λ Σ_f MIPS_f, each move a damped Gauss–Newton step in
+/// the tangent plane that is only accepted if no incident face degenerates or inverts and E
+/// decreases. Requires a flip-free start (faces with det <= 0 are never created, never repaired).
+/// With `regularization` ε > 0 it is the untangling variant: areas regularised, inversions allowed.
+OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets,
+                             std::vector<Vec3>& s, const OptimizeOptions& options = {});
+
+/// 1-to-4 subdivision (edge midpoints): the refined mesh keeps the original vertices first.
+Mesh subdivide(const Mesh& mesh);
+
+}  // namespace sphparam

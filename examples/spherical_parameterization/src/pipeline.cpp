@@ -1,0 +1,365 @@
+// The parameterization pipeline. The OT stage uses the library's sphere geometry and solver.
+#include "pipeline.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <optional>
+#include <numeric>
+#include <unordered_map>
+#include <Eigen/Geometry>
+#include <array>
+
+#ifdef SPHPARAM_HAVE_SPHERE
+#include <sdot/geometries/sphere.hpp>
+#include <sdot/solver.hpp>
+#endif
+
+namespace sphparam {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+inline std::size_t u(int i) { return static_cast<std::size_t>(i); }
+
+std::string fmt_g(double x) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.3g", x);
+  return b;
+}
+
+
+#ifdef SPHPARAM_HAVE_SPHERE
+struct OtOutcome {
+  bool usable = false;
+  std::vector<Vec3> centroids;
+  std::vector<double> cell_masses;
+};
+
+/// One OT solve with sdot::Sphere; fills `rec` (status, iterations, errors).
+OtOutcome solve_ot(const std::vector<Vec3>& sites, const std::vector<double>& masses, double tolerance,
+                   int max_iterations, const std::function<void(const std::string&)>& say, OtRecord* rec) {
+  OtOutcome out;
+  Eigen::VectorXd nu(static_cast<Eigen::Index>(masses.size()));
+  for (std::size_t i = 0; i < masses.size(); ++i) nu[static_cast<Eigen::Index>(i)] = masses[i];
+  sdot::Options opt;
+  opt.tolerance = tolerance;
+  opt.max_iterations = max_iterations;
+  if (rec) rec->error_history.clear(), rec->iterations = 0;
+  opt.callback = [&](const sdot::IterationRecord& r) {
+    if (rec) rec->error_history.push_back(r.max_relative_error);
+    say("  Newton " + std::to_string(r.iteration) + ": max rel. mass error " + fmt_g(r.max_relative_error) +
+        ", step " + fmt_g(r.step) + ", " + fmt_g(r.elapsed_s) + " s");
+  };
+  try {
+    sdot::Sphere sphere;
+    // The hull builder is about 3x faster here; both give the same cells.
+    if (!std::getenv("SPHPARAM_CLIPPING")) sphere.set_builder(sdot::Sphere::Builder::hull);
+    const std::span<const Vec3> span(sites);
+    // Continuation from the Voronoi areas μ0 of the sites to the targets ν, geometric in
+    // log(ν/μ0) (at most a factor e per stage): far from ν the damped Newton method otherwise
+    // takes tiny steps for many iterations.
+    std::optional<Eigen::VectorXd> warm;
+    {
+      const Eigen::VectorXd zero = Eigen::VectorXd::Zero(nu.size());
+      auto ev = sdot::evaluate(sphere, sdot::UniformDensity{}, span, zero, false);
+      const double scale = nu.sum() / ev.masses.sum();
+      double worst = 0;
+      bool ok = true;
+      for (Eigen::Index i = 0; i < nu.size(); ++i) {
+        if (!(ev.masses[i] > 0)) ok = false;
+        else worst = std::max(worst, std::abs(std::log(nu[i] / (scale * ev.masses[i]))));
+      }
+      const int stages = ok ? std::min(4, static_cast<int>(std::ceil(worst / 2.0))) : 1;
+      for (int k = 1; k < stages; ++k) {
+        const double t = static_cast<double>(k) / stages;
+        Eigen::VectorXd nut(nu.size());
+        for (Eigen::Index i = 0; i < nu.size(); ++i)
+          nut[i] = std::pow(scale * ev.masses[i], 1 - t) * std::pow(nu[i], t);
+        sdot::Options o2 = opt;
+        o2.tolerance = std::max(1e-2, tolerance);
+        auto part = sdot::solve(sphere, sdot::UniformDensity{}, span, nut, o2, warm);
+        if (part.summary.iterations == 0 && !part.summary.converged()) break;
+        warm = part.weights;
+        say("  continuation stage " + std::to_string(k) + "/" + std::to_string(stages) + ": " +
+            std::to_string(part.summary.iterations) + " Newton it, " + part.summary.message);
+        if (rec) rec->iterations += part.summary.iterations;
+      }
+    }
+    const int previous_iterations = rec ? rec->iterations : 0;
+    auto result = sdot::solve(sphere, sdot::UniformDensity{}, span, nu, opt, warm);
+    const auto& sum = result.summary;
+    std::string status;
+    switch (sum.status) {
+      case sdot::Status::converged: status = "converged"; break;
+      case sdot::Status::line_search_failure:
+        // A stall at a small error is the precision floor of clustered sites: a result, not a failure.
+        status = sum.max_relative_error < 1e-3 ? "precision_floor" : "line_search_failure";
+        break;
+      case sdot::Status::precision_floor: status = "precision_floor"; break;  // the solver's own floor detection
+      case sdot::Status::iteration_limit: status = "iteration_limit"; break;
+      case sdot::Status::linear_solve_failure: status = "linear_solve_failure"; break;
+    }
+    out.usable = sum.iterations > 0 || sum.status == sdot::Status::converged;
+    if (!out.usable) status = "failed";
+    if (rec) {
+      rec->status = status;
+      rec->message = sum.message;
+      rec->iterations = previous_iterations + sum.iterations;
+      rec->max_relative_error = sum.max_relative_error;
+      rec->rms_relative_error = sum.rms_relative_error;
+      rec->height_range = result.weights.size() ? result.weights.maxCoeff() - result.weights.minCoeff() : 0;
+    }
+    out.centroids.resize(sites.size());
+    out.cell_masses.resize(sites.size());
+    for (std::size_t i = 0; i < sites.size(); ++i) {
+      out.centroids[i] = result.centroids[i].normalized();
+      out.cell_masses[i] = result.masses[static_cast<Eigen::Index>(i)];
+    }
+  } catch (const std::exception& e) {
+    if (rec) rec->status = "failed", rec->message = e.what();
+  }
+  return out;
+}
+
+/// Greedy δ-separated representatives (hash grid), each vertex joins its nearest one; one OT
+/// solve on the representatives with the cluster masses; each cluster is then moved rigidly
+/// (rotation taking its representative to the cell centroid) and scaled by the square root of
+/// the ratio of its cell area to its Voronoi area. Spreads exponentially crushed regions.
+std::string separate_clusters(std::vector<Vec3>& s, const std::vector<double>& masses, double delta, OtRecord& rec) {
+  const std::size_t n = s.size();
+  auto cell_of = [&](const Vec3& p) {
+    return std::array<long long, 3>{static_cast<long long>(std::floor(p.x() / delta)),
+                                    static_cast<long long>(std::floor(p.y() / delta)),
+                                    static_cast<long long>(std::floor(p.z() / delta))};
+  };
+  auto hash = [](const std::array<long long, 3>& c) {
+    return static_cast<std::uint64_t>(c[0] * 73856093LL) ^ static_cast<std::uint64_t>(c[1] * 19349663LL) ^
+           static_cast<std::uint64_t>(c[2] * 83492791LL);
+  };
+  std::unordered_map<std::uint64_t, std::vector<int>> grid;
+  std::vector<int> reps;
+  // heaviest first: big vertices are good representatives
+  std::vector<int> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return masses[u(a)] > masses[u(b)]; });
+  auto nearest = [&](const Vec3& p, double limit) {
+    const auto c = cell_of(p);
+    int best = -1;
+    double bd = limit * limit;
+    for (long long dx = -1; dx <= 1; ++dx)
+      for (long long dy = -1; dy <= 1; ++dy)
+        for (long long dz = -1; dz <= 1; ++dz) {
+          auto it = grid.find(hash({c[0] + dx, c[1] + dy, c[2] + dz}));
+          if (it == grid.end()) continue;
+          for (int r : it->second) {
+            const double d = (s[u(reps[u(r)])] - p).squaredNorm();
+            if (d < bd) bd = d, best = r;
+          }
+        }
+    return best;
+  };
+  for (int v : order)
+    if (nearest(s[u(v)], delta) < 0) {
+      grid[hash(cell_of(s[u(v)]))].push_back(static_cast<int>(reps.size()));
+      reps.push_back(v);
+    }
+  std::vector<int> owner(n);
+  std::vector<double> cmass(reps.size(), 0.0);
+  for (std::size_t v = 0; v < n; ++v) {
+    int r = nearest(s[v], 2 * delta);
+    if (r < 0) r = 0;  // cannot happen: every vertex has a representative within δ
+    owner[v] = r;
+    cmass[u(r)] += masses[v];
+  }
+  std::vector<Vec3> sites(reps.size());
+  for (std::size_t r = 0; r < reps.size(); ++r) sites[r] = s[u(reps[r])];
+  OtRecord local;
+  OtOutcome o = solve_ot(sites, cmass, 1e-6, 40, [](const std::string&) {}, &local);
+  if (!o.usable) {
+    rec.message = "separation pass failed: " + local.message;
+    return "failed: " + local.message;
+  }
+  // Voronoi areas of the representatives (h = 0)
+  sdot::Sphere sphere;
+  sphere.set_builder(sdot::Sphere::Builder::hull);
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(sites.size()));
+  auto ev = sdot::evaluate(sphere, sdot::UniformDensity{}, std::span<const Vec3>(sites), zero, false);
+  std::vector<Eigen::Matrix3d> rot(reps.size());
+  std::vector<double> scale(reps.size());
+  for (std::size_t r = 0; r < reps.size(); ++r) {
+    rot[r] = Eigen::Quaterniond::FromTwoVectors(sites[r], o.centroids[r]).toRotationMatrix();
+    const double vor = ev.masses[static_cast<Eigen::Index>(r)];
+    scale[r] = vor > 0 ? std::sqrt(std::max(o.cell_masses[r], 1e-300) / vor) : 1.0;
+  }
+  for (std::size_t v = 0; v < n; ++v) {
+    const auto r = u(owner[v]);
+    const Vec3 offset = s[v] - sites[r];
+    s[v] = (o.centroids[r] + scale[r] * (rot[r] * offset)).normalized();
+  }
+  return std::to_string(reps.size()) + " clusters, OT " + local.status + " in " + std::to_string(local.iterations) +
+         " it";
+}
+#endif
+
+double min_edge_length(const Mesh& mesh, const std::vector<Vec3>& s) {
+  double m = 1e300;
+  for (const auto& f : mesh.faces)
+    for (int k = 0; k < 3; ++k) m = std::min(m, (s[u(f[u(k)])] - s[u(f[u((k + 1) % 3)])]).norm());
+  return m;
+}
+
+}  // namespace
+
+double target_area_error(const Mesh& mesh, const std::vector<Vec3>& s, const std::vector<double>& targets) {
+  double sum = 0;
+  std::size_t n = 0;
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+    const auto& t = mesh.faces[f];
+    const double a = spherical_triangle_area(s[u(t[0])], s[u(t[1])], s[u(t[2])]);
+    const double d = std::log(a / targets[f]);
+    if (std::isfinite(d)) sum += std::abs(d), ++n;
+  }
+  return n ? sum / static_cast<double>(n) : std::nan("");
+}
+
+PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
+  PipelineResult R;
+  auto say = [&](const std::string& s) {
+    if (options.progress) options.progress(s);
+  };
+  const Topology topo(mesh);
+  const auto targets = face_targets(mesh, options.vertex_factors);
+  const auto masses = vertex_targets(mesh, targets);
+  auto record = [&](const std::string& name, double seconds, const std::vector<Vec3>& s, std::string note = "") {
+    StageRecord r{name, seconds, target_area_error(mesh, s, targets), count_flips(mesh, s), std::move(note)};
+    say(name + ": " + fmt_g(seconds) + " s, area mean|d| " + fmt_g(r.area_mean_abs) + ", flips " +
+        std::to_string(r.flips) + (r.note.empty() ? "" : " (" + r.note + ")"));
+    R.stages.push_back(std::move(r));
+  };
+
+  // 1. Initial map: Tutte embedding, inverse stereographic projection, Möbius balancing.
+  auto t = Clock::now();
+  int reweightings = 0;
+  std::vector<Vec3> s = tutte_sphere_map(mesh, topo, targets, options.max_reweightings, &reweightings);
+  const int mobius_iterations = mobius_balance(s, masses);
+  R.initial = s;
+  record("initial_map", since(t), s,
+         "Tutte + " + std::to_string(reweightings) + " stretch reweightings + stereographic + Moebius (" +
+             std::to_string(mobius_iterations) + " it)");
+
+  // 2. OT with sdot::Sphere: sites = current positions (+ refined Diracs), masses = vertex areas.
+  t = Clock::now();
+  int refine = options.refine;
+  if (refine < 0) refine = mesh.vertices.size() <= 15000 ? 1 : 0;
+  R.ot.refine = refine;
+#ifdef SPHPARAM_HAVE_SPHERE
+  {
+    // 2a. Separate crushed sites: coarse OT passes on well-separated representatives.
+    const double h0 = std::sqrt(4 * M_PI / static_cast<double>(s.size()));
+    for (int pass = 0; pass < 8; ++pass) {
+      const double spacing = min_edge_length(mesh, s);
+      if (spacing >= options.min_spacing * h0) break;
+      const auto tp = Clock::now();
+      const std::string note = separate_clusters(s, masses, options.separation_delta * h0, R.ot);
+      record("separation_pass_" + std::to_string(pass + 1), since(tp), s, note);
+    }
+    t = Clock::now();
+    Mesh dirac_mesh = mesh;
+    std::vector<Vec3> sites = s;
+    std::vector<double> factors = options.vertex_factors;
+    for (int level = 0; level < refine; ++level) {
+      Mesh fine = subdivide(dirac_mesh);
+      sites.resize(fine.vertices.size());
+      if (!factors.empty()) factors.resize(fine.vertices.size());
+      for (std::size_t fi = 0; fi < dirac_mesh.faces.size(); ++fi) {
+        const auto& coarse = dirac_mesh.faces[fi];
+        const auto& centre = fine.faces[4 * fi + 3];  // (ab, bc, ca)
+        const int ends[3][2] = {{coarse[0], coarse[1]}, {coarse[1], coarse[2]}, {coarse[2], coarse[0]}};
+        for (int k = 0; k < 3; ++k) {
+          const auto m = u(centre[u(k)]);
+          sites[m] = (sites[u(ends[k][0])] + sites[u(ends[k][1])]).normalized();
+          if (!factors.empty()) factors[m] = 0.5 * (factors[u(ends[k][0])] + factors[u(ends[k][1])]);
+        }
+      }
+      dirac_mesh = std::move(fine);
+    }
+    const auto dirac_targets = face_targets(dirac_mesh, factors);
+    const auto dirac_masses = vertex_targets(dirac_mesh, dirac_targets);
+    R.ot.sites = sites.size();
+    say("OT: " + std::to_string(sites.size()) + " Diracs (refinement " + std::to_string(refine) + ")");
+    OtOutcome o = solve_ot(sites, dirac_masses, options.ot_tolerance, options.ot_max_iterations, say, &R.ot);
+    if (o.usable)
+      for (std::size_t i = 0; i < s.size(); ++i) s[i] = o.centroids[i];
+  }
+#else
+  R.ot.status = "unavailable";
+  R.ot.message = "built without the sphere geometry";
+#endif
+  record("ot_centroids", since(t), s, "OT " + R.ot.status + ", " + std::to_string(R.ot.iterations) + " Newton it");
+
+  // 4. Untangle. First area-aware: a regularised area energy log²(A_ε/T) with a decreasing ε
+  //    (inverted faces have finite energy, vertices can pass through them); then monotone
+  //    Laplacian moves around what is left, then free Laplacian smoothing on growing rings.
+  t = Clock::now();
+  if (count_flips(mesh, s) > 0) {
+    OptimizeOptions uo;
+    uo.conformal_weight = 0;
+    uo.max_sweeps = 60;
+    uo.activity_threshold = 1e-4;
+    for (double eps : {1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5}) {
+      uo.regularization = eps;
+      optimize_area(mesh, topo, targets, s, uo);
+      if (count_flips(mesh, s) == 0) break;
+    }
+    record("untangle_regularized", since(t), s, "regularised area energy, eps 0.1 -> 1e-5");
+    t = Clock::now();
+  }
+  R.untangle_remaining = count_flips(mesh, s);
+  for (int round = 0; round < 4 && R.untangle_remaining > 0; ++round) {
+    // monotone Laplacian moves rearrange the stuck spots, then the regularised energy again
+    untangle(mesh, topo, s, 30, false);
+    OptimizeOptions uo;
+    uo.conformal_weight = 0;
+    uo.max_sweeps = 100;
+    uo.activity_threshold = 1e-5;
+    for (double eps : {1e-2, 1e-3, 1e-4, 1e-5}) {
+      uo.regularization = eps;
+      optimize_area(mesh, topo, targets, s, uo);
+      if (count_flips(mesh, s) == 0) break;
+    }
+    R.untangle_remaining = count_flips(mesh, s);
+  }
+  if (R.untangle_remaining > 0) {
+    std::vector<Vec3> trial = s;  // free smoothing may destroy more than it repairs: keep the best
+    const std::size_t left = untangle(mesh, topo, trial, 400, true);
+    if (left < R.untangle_remaining) s = std::move(trial), R.untangle_remaining = left;
+    if (R.untangle_remaining == 0) {
+      // the smoothing damaged the area: repair it with the regularised energy, keep it if flip-free
+      std::vector<Vec3> repaired = s;
+      OptimizeOptions uo;
+      uo.conformal_weight = 0;
+      uo.max_sweeps = 100;
+      uo.activity_threshold = 1e-5;
+      for (double eps : {1e-3, 1e-4, 1e-5}) {
+        uo.regularization = eps;
+        optimize_area(mesh, topo, targets, repaired, uo);
+      }
+      if (count_flips(mesh, repaired) == 0) s = std::move(repaired);
+    }
+  }
+  record("untangle_laplacian", since(t), s, "monotone, then free on growing rings");
+
+  // 5. Flip-free area-correcting optimization.
+  if (options.optimize && R.untangle_remaining == 0) {
+    t = Clock::now();
+    R.optimizer = optimize_area(mesh, topo, targets, s, options.optimizer);
+    record("area_optimization", since(t), s, std::to_string(R.optimizer.sweeps) + " sweeps");
+  }
+  R.sphere = std::move(s);
+  return R;
+}
+
+}  // namespace sphparam

@@ -1,0 +1,69 @@
+#pragma once
+/// \file pipeline.hpp
+/// The whole parameterization: initial map → OT (sdot::Sphere + sdot::solve) → centroids →
+/// untangling → flip-free area optimization, with timings and metrics of every stage.
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "mesh.hpp"
+#include "param.hpp"
+
+namespace sphparam {
+
+struct PipelineOptions {
+  /// Dirac refinement levels (each level splits every triangle in 4); −1 chooses by size.
+  int refine = 0;
+  double ot_tolerance = 1e-4;  ///< max relative mass error of the OT solve (the optimizer refines further)
+  int ot_max_iterations = 60;
+  /// Stretch reweightings of the Tutte map at most (only while regions are crushed).
+  int max_reweightings = 0;
+  /// Separation passes run while the shortest edge of the map is below this times sqrt(4π/N).
+  double min_spacing = 5e-5;
+  /// Separation radius of the representatives, times sqrt(4π/N).
+  double separation_delta = 0.1;
+  bool optimize = true;        ///< run the final area-correcting optimization
+  OptimizeOptions optimizer;
+  std::vector<double> vertex_factors;  ///< --target-weights (empty: uniform)
+  /// Progress lines (stage starts, Newton iterations); may be empty.
+  std::function<void(const std::string&)> progress;
+};
+
+struct StageRecord {
+  std::string name;
+  double seconds = 0;
+  double area_mean_abs = 0;  ///< against the targets, after the stage
+  std::size_t flips = 0;
+  std::string note;
+};
+
+struct OtRecord {
+  std::string status = "not run";  ///< converged, precision_floor, iteration_limit, failed, unavailable
+  std::string message;
+  int iterations = 0;
+  double max_relative_error = 0;
+  double rms_relative_error = 0;
+  std::size_t sites = 0;
+  int refine = 0;
+  double min_site_distance = 0;
+  double height_range = 0;  ///< max h − min h
+  std::vector<double> error_history;
+};
+
+struct PipelineResult {
+  std::vector<Vec3> initial;  ///< the initial (Tutte + Möbius) map
+  std::vector<Vec3> sphere;   ///< the final map
+  std::vector<StageRecord> stages;
+  OtRecord ot;
+  std::size_t untangle_remaining = 0;
+  OptimizeResult optimizer;
+};
+
+/// Parameterizes an outward-oriented, validated closed genus-0 mesh.
+PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options);
+
+/// Mean |log(A_sphere / target)| over faces (the area metric against the targets).
+double target_area_error(const Mesh& mesh, const std::vector<Vec3>& s, const std::vector<double>& targets);
+
+}  // namespace sphparam

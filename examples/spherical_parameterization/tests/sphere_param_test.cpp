@@ -1,0 +1,481 @@
+// Tests of the spherical parameterization example: I/O, validation, metrics, pipeline.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <numeric>
+#include <sstream>
+#include <unistd.h>
+
+#include "mesh.hpp"
+#include "param.hpp"
+#include "pipeline.hpp"
+#include "report.hpp"
+#include "test_meshes.hpp"
+
+using namespace sphparam;
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path temp_dir() {
+  static const fs::path dir = [] {
+    fs::path d = fs::temp_directory_path() / ("sphparam_test_" + std::to_string(::getpid()));
+    fs::create_directories(d);
+    return d;
+  }();
+  return dir;
+}
+
+void write_text(const fs::path& p, const std::string& text) {
+  std::ofstream out(p, std::ios::binary);
+  out << text;
+}
+
+const Defect* find_defect(const Validation& v, const std::string& name) {
+  for (const auto& d : v.defects)
+    if (d.name == name) return &d;
+  return nullptr;
+}
+
+Mesh two_spheres(bool share_vertex) {
+  Mesh a = test::icosphere(1), b = test::icosphere(1);
+  const int offset = static_cast<int>(a.vertices.size());
+  for (auto& v : b.vertices) a.vertices.push_back(v + Vec3(3, 0, 0));
+  for (auto f : b.faces) {
+    for (int& i : f) i += offset;
+    a.faces.push_back(f);
+  }
+  if (share_vertex) {  // glue vertex 0 of the second sphere onto vertex 0 of the first
+    for (std::size_t f = static_cast<std::size_t>(a.faces.size() / 2); f < a.faces.size(); ++f)
+      for (int& i : a.faces[f])
+        if (i == offset) i = 0;
+    // the second copy's vertex `offset` is now unreferenced; remove it by moving the last vertex
+  }
+  return a;
+}
+
+Mesh torus(int n, int m) {
+  Mesh t;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < m; ++j) {
+      const double a = 2 * M_PI * i / n, b = 2 * M_PI * j / m;
+      t.vertices.emplace_back((2 + std::cos(b)) * std::cos(a), (2 + std::cos(b)) * std::sin(a), std::sin(b));
+    }
+  auto id = [&](int i, int j) { return ((i + n) % n) * m + (j + m) % m; };
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < m; ++j) {
+      t.faces.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+      t.faces.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+    }
+  return t;
+}
+
+struct RunResult {
+  Metrics metrics;
+  PipelineResult pipeline;
+};
+
+RunResult run(const Mesh& mesh, PipelineOptions options = {}) {
+  RunResult r;
+  r.pipeline = parameterize(mesh, options);
+  r.metrics = evaluate_map(mesh, r.pipeline.sphere, 1.0);
+  return r;
+}
+
+}  // namespace
+
+// ----------------------------------------------------------------------------------- I/O
+TEST(MeshIo, RoundTripEveryFormat) {
+  Mesh m = test::bumpy_sphere(2, 5, 0.3, 3);
+  for (const std::string name : {"a.off", "a.obj", "a.ply", "b.PLY"}) {
+    for (bool ascii : {false, true}) {
+      const auto path = (temp_dir() / name).string();
+      write_mesh(path, m, ascii);
+      ReadInfo info;
+      const Mesh back = read_mesh(path, &info);
+      ASSERT_EQ(back.vertices.size(), m.vertices.size()) << name;
+      ASSERT_EQ(back.faces, m.faces) << name;
+      for (std::size_t i = 0; i < m.vertices.size(); ++i) ASSERT_EQ(back.vertices[i], m.vertices[i]) << name;
+      EXPECT_EQ(info.polygons, 0u);
+    }
+  }
+}
+
+TEST(MeshIo, PlyTristripsAsciiAndBinary) {
+  // a square pyramid's 4 side triangles as one strip plus the base as two: strips 0 1 2 3 4 1 -1
+  const std::string header_common =
+      "element vertex 5\nproperty float x\nproperty float y\nproperty float z\n"
+      "element tristrips 1\nproperty list uchar int vertex_indices\nend_header\n";
+  const std::string verts = "0 0 1\n1 0 0\n0 1 0\n-1 0 0\n0 -1 0\n";
+  write_text(temp_dir() / "s.ply", "ply\nformat ascii 1.0\n" + header_common + verts + "7 1 0 2 -1 3 0 4\n");
+  const Mesh a = read_mesh((temp_dir() / "s.ply").string());
+  // strip 1 0 2 -> (1,0,2); strip 3 0 4 -> (3,0,4)
+  ASSERT_EQ(a.faces.size(), 2u);
+  EXPECT_EQ(a.faces[0], (Face{1, 0, 2}));
+  EXPECT_EQ(a.faces[1], (Face{3, 0, 4}));
+  // binary: strip 0 1 2 3 gives (0,1,2), (2,1,3) [odd triangles swap]
+  std::string bin = "ply\nformat binary_little_endian 1.0\n" + header_common;
+  const float xyz[15] = {0, 0, 1, 1, 0, 0, 0, 1, 0, -1, 0, 0, 0, -1, 0};
+  bin.append(reinterpret_cast<const char*>(xyz), sizeof xyz);
+  bin.push_back(4);
+  const std::int32_t idx[4] = {0, 1, 2, 3};
+  bin.append(reinterpret_cast<const char*>(idx), sizeof idx);
+  write_text(temp_dir() / "b.ply", bin);
+  const Mesh b = read_mesh((temp_dir() / "b.ply").string());
+  ASSERT_EQ(b.faces.size(), 2u);
+  EXPECT_EQ(b.faces[0], (Face{0, 1, 2}));
+  EXPECT_EQ(b.faces[1], (Face{2, 1, 3}));
+  EXPECT_EQ(b.vertices.size(), 5u);
+  EXPECT_DOUBLE_EQ(b.vertices[3].x(), -1.0);
+}
+
+TEST(MeshIo, PolygonsAreFanTriangulatedAndCounted) {
+  // a cube with quad faces, OFF and OBJ
+  const std::string v = "-1 -1 -1\n1 -1 -1\n1 1 -1\n-1 1 -1\n-1 -1 1\n1 -1 1\n1 1 1\n-1 1 1\n";
+  const int q[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {2, 3, 7, 6}, {1, 2, 6, 5}, {0, 4, 7, 3}};
+  std::string off = "OFF\n8 6 0\n" + v, obj;
+  for (int i = 0; i < 8; ++i) obj += "v " + v.substr(0, 0);
+  std::istringstream vs(v);
+  std::string line;
+  obj.clear();
+  while (std::getline(vs, line)) obj += "v " + line + "\n";
+  for (auto& f : q) {
+    off += "4 " + std::to_string(f[0]) + " " + std::to_string(f[1]) + " " + std::to_string(f[2]) + " " +
+           std::to_string(f[3]) + "\n";
+    obj += "f " + std::to_string(f[0] + 1) + "/1 " + std::to_string(f[1] + 1) + "//2 " + std::to_string(f[2] + 1) +
+           " " + std::to_string(f[3] - 8) + "\n";  // negative (relative) index for the last corner
+  }
+  write_text(temp_dir() / "cube.off", off);
+  write_text(temp_dir() / "cube.obj", obj);
+  for (const char* name : {"cube.off", "cube.obj"}) {
+    ReadInfo info;
+    const Mesh m = read_mesh((temp_dir() / name).string(), &info);
+    EXPECT_EQ(m.faces.size(), 12u) << name;
+    EXPECT_EQ(info.polygons, 6u) << name;
+    const Validation val = validate(m, info);
+    EXPECT_TRUE(val.ok()) << name;
+    const Defect* d = find_defect(val, "polygons");
+    ASSERT_NE(d, nullptr);
+    EXPECT_FALSE(d->fatal);
+    EXPECT_NE(d->message.find("6 polygons"), std::string::npos) << d->message;
+    EXPECT_NE(d->message.find("triangulated"), std::string::npos) << d->message;
+  }
+}
+
+TEST(MeshIo, MalformedFilesGiveClearErrors) {
+  write_text(temp_dir() / "bad.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n");
+  EXPECT_THROW(read_mesh((temp_dir() / "bad.off").string()), FileError);
+  write_text(temp_dir() / "idx.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
+  try {
+    read_mesh((temp_dir() / "idx.off").string());
+    FAIL();
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("index 7"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(read_mesh((temp_dir() / "nothing.stl").string()), FileError);
+  EXPECT_THROW(read_mesh((temp_dir() / "missing.off").string()), FileError);
+}
+
+// ----------------------------------------------------------------------------- validation
+TEST(Validation, CleanSphereIsValid) {
+  const Validation v = validate(test::icosphere(2));
+  EXPECT_TRUE(v.ok());
+  EXPECT_TRUE(v.defects.empty());
+  EXPECT_EQ(v.euler_characteristic, 2);
+  EXPECT_FALSE(v.inward);
+}
+
+TEST(Validation, UnreferencedVerticesAreDropped) {
+  Mesh m = test::icosphere(1);
+  m.vertices.insert(m.vertices.begin() + 3, Vec3(5, 5, 5));
+  for (auto& f : m.faces)
+    for (int& i : f)
+      if (i >= 3) ++i;
+  m.vertices.emplace_back(7, 7, 7);
+  const Validation v = validate(m);
+  EXPECT_TRUE(v.ok());
+  const Defect* d = find_defect(v, "unreferenced vertices");
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d->count, 2u);
+  EXPECT_NE(d->message.find("2 unreferenced vertices"), std::string::npos);
+  std::vector<int> kept;
+  const Mesh clean = drop_unreferenced(m, &kept);
+  EXPECT_EQ(clean.vertices.size(), m.vertices.size() - 2);
+  EXPECT_TRUE(validate(clean).defects.empty());
+  EXPECT_EQ(kept[3], 4);
+}
+
+TEST(Validation, BoundaryEdges) {
+  Mesh m = test::icosphere(1);
+  m.faces.pop_back();
+  const Validation v = validate(m);
+  EXPECT_FALSE(v.ok());
+  const Defect* d = find_defect(v, "boundary edges");
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d->count, 3u);
+  EXPECT_NE(d->message.find("3 boundary edges"), std::string::npos);
+}
+
+TEST(Validation, NonManifoldEdge) {
+  Mesh m = test::icosphere(1);
+  const Face f = m.faces[0];
+  m.vertices.emplace_back(0, 0, 3);
+  m.faces.push_back({f[1], f[0], static_cast<int>(m.vertices.size() - 1)});
+  const Validation v = validate(m);
+  EXPECT_FALSE(v.ok());
+  const Defect* d = find_defect(v, "non-manifold edges");
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d->count, 1u);
+}
+
+TEST(Validation, NonManifoldVertexAndComponents) {
+  Mesh glued = two_spheres(true);
+  Validation v = validate(glued);
+  EXPECT_FALSE(v.ok());
+  const Defect* d = find_defect(v, "non-manifold vertices");
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d->count, 1u);
+  EXPECT_NE(d->message.find("1 non-manifold vertex"), std::string::npos);
+
+  Validation two = validate(two_spheres(false));
+  const Defect* c = find_defect(two, "several components");
+  ASSERT_NE(c, nullptr);
+  EXPECT_EQ(c->count, 2u);
+  EXPECT_NE(c->message.find("2 connected components"), std::string::npos);
+}
+
+TEST(Validation, EulerCharacteristicReportsGenus) {
+  const Validation v = validate(torus(12, 8));
+  EXPECT_FALSE(v.ok());
+  const Defect* d = find_defect(v, "Euler characteristic");
+  ASSERT_NE(d, nullptr);
+  EXPECT_NE(d->message.find("= 0"), std::string::npos) << d->message;
+  EXPECT_NE(d->message.find("genus 1"), std::string::npos) << d->message;
+}
+
+TEST(Validation, InconsistentOrientation) {
+  Mesh m = test::icosphere(1);
+  std::swap(m.faces[5][1], m.faces[5][2]);
+  const Validation v = validate(m);
+  EXPECT_FALSE(v.ok());
+  const Defect* d = find_defect(v, "inconsistent orientation");
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d->count, 3u);
+}
+
+TEST(Validation, ZeroAreaFacesAreReported) {
+  Mesh m = test::icosphere(2);
+  // move a vertex onto the midpoint of the opposite edge of one of its faces
+  const Face f = m.faces[0];
+  m.vertices[static_cast<std::size_t>(f[0])] =
+      0.5 * (m.vertices[static_cast<std::size_t>(f[1])] + m.vertices[static_cast<std::size_t>(f[2])]);
+  const Validation v = validate(m);
+  const Defect* d = find_defect(v, "zero-area faces");
+  ASSERT_NE(d, nullptr);
+  EXPECT_GE(d->count, 1u);
+  EXPECT_NE(d->message.find("zero-area face"), std::string::npos);
+}
+
+TEST(Validation, NanCoordinates) {
+  Mesh m = test::icosphere(1);
+  m.vertices[2].x() = std::nan("");
+  m.vertices[4].z() = std::numeric_limits<double>::infinity();
+  const Validation v = validate(m);
+  EXPECT_FALSE(v.ok());
+  const Defect* d = find_defect(v, "NaN coordinates");
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d->count, 2u);
+}
+
+TEST(Validation, DegenerateConnectivity) {
+  Mesh m = test::icosphere(1);
+  m.faces[0][1] = m.faces[0][0];
+  const Validation v = validate(m);
+  EXPECT_FALSE(v.ok());
+  EXPECT_NE(find_defect(v, "degenerate faces"), nullptr);
+}
+
+TEST(Validation, InwardOrientationIsAccepted) {
+  Mesh m = test::icosphere(2);
+  for (auto& f : m.faces) std::swap(f[1], f[2]);
+  const Validation v = validate(m);
+  EXPECT_TRUE(v.ok());
+  EXPECT_TRUE(v.inward);
+  EXPECT_NE(find_defect(v, "inward orientation"), nullptr);
+}
+
+// -------------------------------------------------------------------------------- metrics
+TEST(Metrics, IdentityMapOfIcosphere) {
+  const Mesh m = test::icosphere(3);
+  const Metrics e = evaluate_map(m, m.vertices, 1.0);
+  EXPECT_EQ(e.flips, 0u);
+  EXPECT_LT(e.area_mean_abs, 0.05);  // chordal vs spherical areas differ slightly
+  EXPECT_NEAR(e.sph_area_sum_over_4pi, 1.0, 1e-12);
+  EXPECT_LT(e.angle_mean_abs_deg, 1e-9);
+  // the opposite orientation sign counts every face as flipped
+  EXPECT_EQ(evaluate_map(m, m.vertices, -1.0).flips, m.faces.size());
+}
+
+TEST(Metrics, SphericalTriangleArea) {
+  // octant: area 4π/8
+  EXPECT_NEAR(spherical_triangle_area(Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ()), M_PI / 2, 1e-14);
+  EXPECT_NEAR(signed_spherical_triangle_area(Vec3::UnitX(), Vec3::UnitZ(), Vec3::UnitY()), -M_PI / 2, 1e-14);
+}
+
+TEST(Report, SvgHasBothHistograms) {
+  const std::string svg = histogram_svg({0.1, -0.2, 0.3, INFINITY}, {0.01, 0.0, -0.01}, "t <x>");
+  EXPECT_NE(svg.find("<svg"), std::string::npos);
+  EXPECT_NE(svg.find("initial map"), std::string::npos);
+  EXPECT_NE(svg.find("final map"), std::string::npos);
+  EXPECT_NE(svg.find("t &lt;x&gt;"), std::string::npos);
+}
+
+// ---------------------------------------------------------------------------- stages
+TEST(Stages, TutteMapIsFlipFreeAndBalanced) {
+  const Mesh m = test::ellipsoid(3, 1, 1.5, 2.5);
+  const Topology topo(m);
+  auto s = tutte_sphere_map(m, topo);
+  const auto masses = vertex_targets(m, face_targets(m, {}));
+  mobius_balance(s, masses);
+  EXPECT_EQ(count_flips(m, s), 0u);
+  Vec3 c = Vec3::Zero();
+  for (std::size_t i = 0; i < s.size(); ++i) c += masses[i] * s[i];
+  EXPECT_LT(c.norm(), 1e-6);
+}
+
+TEST(Stages, UntangleRepairsPerturbedMap) {
+  const Mesh m = test::icosphere(3);
+  const Topology topo(m);
+  auto s = m.vertices;
+  // fold a few vertices over their neighbours
+  for (int v : {10, 200, 400}) {
+    const int nb = topo.nbrs[static_cast<std::size_t>(topo.nbr_offsets[static_cast<std::size_t>(v)])];
+    s[static_cast<std::size_t>(v)] = (2.2 * s[static_cast<std::size_t>(nb)] - 1.2 * s[static_cast<std::size_t>(v)]).normalized();
+  }
+  ASSERT_GT(count_flips(m, s), 0u);
+  EXPECT_EQ(untangle(m, topo, s), 0u);
+  EXPECT_EQ(count_flips(m, s), 0u);
+}
+
+TEST(Stages, SubdivideKeepsOriginalVerticesFirst) {
+  const Mesh m = test::icosphere(1);
+  const Mesh f = subdivide(m);
+  EXPECT_EQ(f.faces.size(), 4 * m.faces.size());
+  EXPECT_EQ(f.vertices.size(), m.vertices.size() + 120);
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) EXPECT_EQ(f.vertices[i], m.vertices[i]);
+}
+
+// -------------------------------------------------------------------------- pipeline
+#ifdef SPHPARAM_HAVE_SPHERE
+TEST(Pipeline, Icosphere) {
+  const auto r = run(test::icosphere(3));
+  EXPECT_EQ(r.metrics.flips, 0u);
+  EXPECT_LT(r.metrics.area_mean_abs, 0.02);
+  EXPECT_NE(r.pipeline.ot.status, "failed");
+}
+
+TEST(Pipeline, Ellipsoid) {
+  const auto r = run(test::ellipsoid(4, 1, 2, 4));
+  EXPECT_EQ(r.metrics.flips, 0u);
+  EXPECT_LT(r.metrics.area_mean_abs, 0.05);
+  EXPECT_TRUE(r.pipeline.ot.status == "converged" || r.pipeline.ot.status == "precision_floor")
+      << r.pipeline.ot.status << ": " << r.pipeline.ot.message;
+}
+
+TEST(Pipeline, SphereWithLongThinSpikes) {
+  const Mesh m = test::spiky_sphere(4, 6, 4.0, 0.25);
+  ASSERT_TRUE(validate(m).ok());
+  const auto r = run(m);
+  EXPECT_EQ(r.metrics.flips, 0u);
+  EXPECT_LT(r.metrics.area_mean_abs, 0.15);
+}
+
+TEST(Pipeline, RandomBumps) {
+  const Mesh m = test::bumpy_sphere(4, 12, 0.6, 11);
+  ASSERT_TRUE(validate(m).ok());
+  const auto r = run(m);
+  EXPECT_EQ(r.metrics.flips, 0u);
+  EXPECT_LT(r.metrics.area_mean_abs, 0.08);
+}
+
+TEST(Pipeline, InwardMeshKeepsOrientation) {
+  Mesh m = test::ellipsoid(3, 1, 1.3, 2);
+  for (auto& f : m.faces) std::swap(f[1], f[2]);
+  ASSERT_TRUE(validate(m).inward);
+  Mesh work = m;  // what the command does: compute on the outward copy, report on the input
+  for (auto& f : work.faces) std::swap(f[1], f[2]);
+  const auto p = parameterize(work, {});
+  const Metrics e = evaluate_map(m, p.sphere, -1.0);
+  EXPECT_EQ(e.flips, 0u);
+}
+
+TEST(Pipeline, TargetWeightsEnlargeRegions) {
+  const Mesh m = test::icosphere(3);
+  PipelineOptions o;
+  o.vertex_factors.resize(m.vertices.size());
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) o.vertex_factors[i] = m.vertices[i].z() > 0 ? 3.0 : 1.0;
+  const auto p = parameterize(m, o);
+  EXPECT_EQ(count_flips(m, p.sphere), 0u);
+  const auto targets = face_targets(m, o.vertex_factors);
+  EXPECT_LT(target_area_error(m, p.sphere, targets), 0.05);
+  // the northern half now covers about 3/4 of the sphere
+  double north = 0;
+  for (std::size_t f = 0; f < m.faces.size(); ++f) {
+    const auto& t = m.faces[f];
+    const Vec3 c = m.vertices[static_cast<std::size_t>(t[0])] + m.vertices[static_cast<std::size_t>(t[1])] +
+                   m.vertices[static_cast<std::size_t>(t[2])];
+    if (c.z() > 0)
+      north += spherical_triangle_area(p.sphere[static_cast<std::size_t>(t[0])], p.sphere[static_cast<std::size_t>(t[1])],
+                                       p.sphere[static_cast<std::size_t>(t[2])]);
+  }
+  EXPECT_NEAR(north / (4 * M_PI), 0.75, 0.05);
+}
+
+TEST(Pipeline, RefinedDiracs) {
+  PipelineOptions o;
+  o.refine = 1;
+  const auto r = run(test::bumpy_sphere(3, 8, 0.5, 5), o);
+  EXPECT_EQ(r.metrics.flips, 0u);
+  EXPECT_EQ(r.pipeline.ot.sites, test::bumpy_sphere(3, 8, 0.5, 5).vertices.size() * 4 - 6);
+}
+#endif
+
+#ifdef SPHPARAM_COMMAND
+TEST(Command, EndToEndWithReportAndSvg) {
+  const auto in = (temp_dir() / "cmd_in.ply").string();
+  const auto out = (temp_dir() / "cmd_out.obj").string();
+  const auto rep = (temp_dir() / "cmd.json").string();
+  const auto svg = (temp_dir() / "cmd.svg").string();
+  write_mesh(in, test::bumpy_sphere(3, 6, 0.4, 2));
+  const std::string cmd = std::string(SPHPARAM_COMMAND) + " " + in + " -o " + out + " --report " + rep + " --svg " +
+                          svg + " --quiet";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  const Mesh o = read_mesh(out);
+  const Mesh i = read_mesh(in);
+  EXPECT_EQ(o.faces, i.faces);
+  for (const auto& v : o.vertices) EXPECT_NEAR(v.norm(), 1.0, 1e-12);
+  std::ifstream r(rep);
+  std::string text((std::istreambuf_iterator<char>(r)), std::istreambuf_iterator<char>());
+  for (const char* key : {"\"final_map\"", "\"initial_map\"", "\"area_mean_abs\"", "\"newton_iterations\"",
+                          "\"max_relative_mass_error\"", "\"times\"", "\"flips\": 0"})
+    EXPECT_NE(text.find(key), std::string::npos) << key;
+  EXPECT_TRUE(fs::exists(svg));
+}
+
+TEST(Command, InvalidInputIsRejectedWithMessage) {
+  Mesh m = test::icosphere(1);
+  m.faces.pop_back();
+  const auto in = (temp_dir() / "open.off").string();
+  write_mesh(in, m);
+  const auto log = (temp_dir() / "open.log").string();
+  const std::string cmd = std::string(SPHPARAM_COMMAND) + " " + in + " -o " + (temp_dir() / "x.off").string() +
+                          " 2> " + log;
+  EXPECT_NE(std::system(cmd.c_str()), 0);
+  std::ifstream l(log);
+  std::string text((std::istreambuf_iterator<char>(l)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("3 boundary edges"), std::string::npos) << text;
+}
+#endif

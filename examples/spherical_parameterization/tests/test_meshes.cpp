@@ -1,0 +1,81 @@
+#include "test_meshes.hpp"
+
+#include <cmath>
+#include <map>
+#include <random>
+
+namespace sphparam::test {
+
+Mesh icosphere(int level) {
+  const double t = (1 + std::sqrt(5.0)) / 2;
+  Mesh m;
+  m.vertices = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+                {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+  for (auto& v : m.vertices) v.normalize();
+  m.faces = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+             {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
+             {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+  for (int l = 0; l < level; ++l) {
+    std::map<std::pair<int, int>, int> mid;
+    auto get = [&](int a, int b) {
+      auto k = std::make_pair(std::min(a, b), std::max(a, b));
+      auto it = mid.find(k);
+      if (it != mid.end()) return it->second;
+      const int i = static_cast<int>(m.vertices.size());
+      m.vertices.push_back((m.vertices[static_cast<std::size_t>(a)] + m.vertices[static_cast<std::size_t>(b)]).normalized());
+      mid[k] = i;
+      return i;
+    };
+    std::vector<Face> faces;
+    for (const auto& f : m.faces) {
+      const int ab = get(f[0], f[1]), bc = get(f[1], f[2]), ca = get(f[2], f[0]);
+      faces.push_back({f[0], ab, ca});
+      faces.push_back({ab, f[1], bc});
+      faces.push_back({ca, bc, f[2]});
+      faces.push_back({ab, bc, ca});
+    }
+    m.faces = std::move(faces);
+  }
+  return m;
+}
+
+Mesh ellipsoid(int level, double a, double b, double c) {
+  Mesh m = icosphere(level);
+  for (auto& v : m.vertices) v = Vec3(a * v.x(), b * v.y(), c * v.z());
+  return m;
+}
+
+Mesh spiky_sphere(int level, int count, double length, double width) {
+  Mesh m = icosphere(level);
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n(0, 1);
+  std::vector<Vec3> dirs;
+  for (int k = 0; k < count; ++k) dirs.push_back(Vec3(n(rng), n(rng), n(rng)).normalized());
+  for (auto& v : m.vertices) {
+    double r = 1;
+    for (const auto& d : dirs) {
+      const double ang = std::acos(std::clamp(v.dot(d), -1.0, 1.0));
+      if (ang < width) r = std::max(r, 1 + (length - 1) * std::cos(0.5 * M_PI * ang / width));
+    }
+    v *= r;
+  }
+  return m;
+}
+
+Mesh bumpy_sphere(int level, int bumps, double amplitude, unsigned seed) {
+  Mesh m = icosphere(level);
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0, 1);
+  std::uniform_real_distribution<double> uni(-1, 1);
+  std::vector<Vec3> c;
+  std::vector<double> a;
+  for (int k = 0; k < bumps; ++k) c.push_back(Vec3(n(rng), n(rng), n(rng)).normalized()), a.push_back(amplitude * uni(rng));
+  for (auto& v : m.vertices) {
+    double r = 1;
+    for (int k = 0; k < bumps; ++k) r += a[static_cast<std::size_t>(k)] * std::exp(-(v - c[static_cast<std::size_t>(k)]).squaredNorm() / 0.15);
+    v *= std::max(r, 0.2);
+  }
+  return m;
+}
+
+}  // namespace sphparam::test
