@@ -273,12 +273,17 @@ std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const Con
 
 namespace {
 
-// A kd-tree over the power-diagram centres c_i with the largest power weight per node, for
-// exact branch-and-bound "who is below the envelope at v" queries (see build_chart_diagram).
+// A kd-tree over the sites' anchors (their positions in the chart, where their cells are), for
+// exact branch-and-bound "who is lowest below the envelope at v" queries. With f_j(v) = c_j·v + b_j
+// (b_j = (w_j − |c_j|²)/2, so pow_j(v) = |v|² − 2 f_j(v)), each node keeps a reference point v₀
+// (its anchor box centre), max_j f_j(v₀) and the box of the c_j; then over the node
+// f_j(v) ≤ max_j f_j(v₀) + max_{c ∈ box} c·(v − v₀), a bound whose slack shrinks like
+// (node size)·|v − v₀| — as for a Euclidean kd-tree — in every geometry, even where the power
+// weights vary a lot across the chart (Klein and gnomonic charts).
 class PowerTree {
 public:
-  PowerTree(std::span<const Vec2> centers, std::span<const double> weights)
-      : centers_(centers), weights_(weights), order_(centers.size()) {
+  PowerTree(std::span<const Vec2> centers, std::span<const double> weights, std::span<const Vec2> anchors)
+      : centers_(centers), weights_(weights), anchors_(anchors), order_(centers.size()) {
     std::iota(order_.begin(), order_.end(), 0);
     nodes_.reserve(2 * centers.size() / leaf_size + 2);
     build(0, static_cast<int>(centers.size()));
@@ -290,16 +295,17 @@ public:
     int stack[128];
     int top = 0;
     stack[top++] = 0;
+    const double v_sq = v.squaredNorm();
     while (top > 0) {
       const Node& node = nodes_[stack[--top]];
-      if (lower_bound(node, v) >= bound) continue;
+      if (lower_bound(node, v, v_sq) >= bound) continue;
       if (node.left < 0) {
         for (int k = node.begin; k < node.end; ++k) {
           const int j = order_[k];
           const double power = (v - centers_[j]).squaredNorm() - weights_[j];
           if (power < bound) bound = power, best = j;
         }
-      } else if (lower_bound(nodes_[node.left], v) <= lower_bound(nodes_[node.right], v)) {
+      } else if (lower_bound(nodes_[node.left], v, v_sq) <= lower_bound(nodes_[node.right], v, v_sq)) {
         stack[top++] = node.right;  // the more promising child is visited first
         stack[top++] = node.left;
       } else {
@@ -313,7 +319,7 @@ public:
   /// Site indices in tree (spatially coherent) order.
   [[nodiscard]] const std::vector<int>& order() const { return order_; }
 
-  /// The up to `count` centres nearest to `v` (Euclidean), unordered.
+  /// The up to `count` sites whose anchors are nearest to `v` (Euclidean), unordered.
   void nearest(const Vec2& v, std::size_t count, std::vector<std::pair<double, int>>& heap) const {
     heap.clear();
     int stack[128];
@@ -321,12 +327,11 @@ public:
     stack[top++] = 0;
     while (top > 0) {
       const Node& node = nodes_[stack[--top]];
-      const Vec2 gap = (node.low - v).cwiseMax(v - node.high).cwiseMax(0.0);
-      if (heap.size() == count && gap.squaredNorm() >= heap.front().first) continue;
+      if (heap.size() == count && box_distance(node, v) >= heap.front().first) continue;
       if (node.left < 0) {
         for (int k = node.begin; k < node.end; ++k) {
           const int j = order_[k];
-          const double d = (v - centers_[j]).squaredNorm();
+          const double d = (v - anchors_[j]).squaredNorm();
           if (heap.size() < count) {
             heap.emplace_back(d, j);
             std::push_heap(heap.begin(), heap.end());
@@ -336,61 +341,77 @@ public:
             std::push_heap(heap.begin(), heap.end());
           }
         }
+      } else if (box_distance(nodes_[node.left], v) <= box_distance(nodes_[node.right], v)) {
+        stack[top++] = node.right;  // nearer child first
+        stack[top++] = node.left;
       } else {
-        // Visit the nearer child first (pushed last).
-        const Node& l = nodes_[node.left];
-        const Vec2 lg = (l.low - v).cwiseMax(v - l.high).cwiseMax(0.0);
-        const Node& r = nodes_[node.right];
-        const Vec2 rg = (r.low - v).cwiseMax(v - r.high).cwiseMax(0.0);
-        if (lg.squaredNorm() <= rg.squaredNorm()) {
-          stack[top++] = node.right;
-          stack[top++] = node.left;
-        } else {
-          stack[top++] = node.left;
-          stack[top++] = node.right;
-        }
+        stack[top++] = node.left;
+        stack[top++] = node.right;
       }
     }
   }
 
 private:
   static constexpr int leaf_size = 8;
-  struct Node;
-  static double lower_bound(const Node& node, const Vec2& v) {
-    const Vec2 gap = (node.low - v).cwiseMax(v - node.high).cwiseMax(0.0);
-    return gap.squaredNorm() - node.max_weight;
-  }
   struct Node {
-    Vec2 low = Vec2::Zero(), high = Vec2::Zero();
-    double max_weight = 0;
+    Vec2 low = Vec2::Zero(), high = Vec2::Zero();                 // anchor box
+    Vec2 slope_low = Vec2::Zero(), slope_high = Vec2::Zero();     // box of the c_j
+    Vec2 reference = Vec2::Zero();                                // v₀
+    double max_at_reference = 0;                                  // max_j f_j(v₀)
     int begin = 0, end = 0, left = -1, right = -1;
   };
+
+  static double box_distance(const Node& node, const Vec2& v) {
+    return (node.low - v).cwiseMax(v - node.high).cwiseMax(0.0).squaredNorm();
+  }
+  static double lower_bound(const Node& node, const Vec2& v, double v_sq) {
+    const Vec2 offset = v - node.reference;
+    const double largest = node.max_at_reference +
+                           std::max(node.slope_low.x() * offset.x(), node.slope_high.x() * offset.x()) +
+                           std::max(node.slope_low.y() * offset.y(), node.slope_high.y() * offset.y());
+    return v_sq - 2 * largest;
+  }
 
   int build(int begin, int end) {
     const int index = static_cast<int>(nodes_.size());
     nodes_.push_back({});
-    Vec2 low = Vec2::Constant(INFINITY), high = Vec2::Constant(-INFINITY);
-    double max_weight = -INFINITY;
+    Node node;
+    node.low = node.slope_low = Vec2::Constant(INFINITY);
+    node.high = node.slope_high = Vec2::Constant(-INFINITY);
     for (int k = begin; k < end; ++k) {
-      low = low.cwiseMin(centers_[order_[k]]);
-      high = high.cwiseMax(centers_[order_[k]]);
-      max_weight = std::max(max_weight, weights_[order_[k]]);
+      const int j = order_[k];
+      node.low = node.low.cwiseMin(anchors_[j]);
+      node.high = node.high.cwiseMax(anchors_[j]);
+      node.slope_low = node.slope_low.cwiseMin(centers_[j]);
+      node.slope_high = node.slope_high.cwiseMax(centers_[j]);
     }
-    int left = -1, right = -1;
+    node.reference = (node.low + node.high) / 2;
+    // f_j(v₀) = (|v₀|² − pow_j(v₀)) / 2, evaluated in the accurate power form.
+    node.max_at_reference = -INFINITY;
+    for (int k = begin; k < end; ++k) {
+      const int j = order_[k];
+      const double power = (node.reference - centers_[j]).squaredNorm() - weights_[j];
+      node.max_at_reference = std::max(node.max_at_reference, (node.reference.squaredNorm() - power) / 2);
+    }
+    // Round-off guard: the bound must stay a bound.
+    node.max_at_reference += 1e-12 * (std::abs(node.max_at_reference) + 1e-300);
+    node.begin = begin;
+    node.end = end;
     if (end - begin > leaf_size) {
-      const int axis = (high - low).x() >= (high - low).y() ? 0 : 1;
+      const int axis = (node.high - node.low).x() >= (node.high - node.low).y() ? 0 : 1;
       const int middle = (begin + end) / 2;
       std::nth_element(order_.begin() + begin, order_.begin() + middle, order_.begin() + end,
-                       [&](int a, int b) { return centers_[a][axis] < centers_[b][axis]; });
-      left = build(begin, middle);
-      right = build(middle, end);
+                       [&](int a, int b) { return anchors_[a][axis] < anchors_[b][axis]; });
+      node.left = build(begin, middle);
+      node.right = build(middle, end);
     }
-    nodes_[index] = {low, high, max_weight, begin, end, left, right};
+    nodes_[index] = node;
     return index;
   }
 
   std::span<const Vec2> centers_;
   std::span<const double> weights_;
+  std::span<const Vec2> anchors_;
   std::vector<int> order_;
   std::vector<Node> nodes_;
 };
@@ -398,7 +419,7 @@ private:
 }  // namespace
 
 std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weight,
-                                          const ConvexPolygon& domain) {
+                                          const ConvexPolygon& domain, std::span<const Vec2> anchors) {
   // Each cell starts as the domain clipped by the sites of the nearest centres; then, while some
   // site j is strictly below the envelope at a vertex v of the cell (pow_j(v) < pow_i(v)), the
   // cell is clipped by it. A kd-tree holding the largest w per node finds such j exactly
@@ -409,7 +430,8 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
   const std::size_t n = centers.size();
   std::vector<ChartCell> cells(n);
   if (n == 0) return cells;
-  const PowerTree tree(centers, power_weight);
+  if (anchors.empty()) anchors = centers;
+  const PowerTree tree(centers, power_weight, anchors);
   const auto& boundary = domain.vertices();
   const std::size_t seed_count = std::min<std::size_t>(n, 13);
 
@@ -435,7 +457,7 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
         used.push_back(j);
       };
       used.assign(1, static_cast<int>(i));
-      tree.nearest(center, seed_count, heap);
+      tree.nearest(anchors[i], seed_count, heap);
       std::sort(heap.begin(), heap.end());
       for (const auto& [distance, j] : heap) {
         if (j == static_cast<int>(i)) continue;
@@ -469,7 +491,8 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
   return cells;
 }
 
-std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain) {
+std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,
+                                           std::span<const Vec2> anchors) {
   // Maximising f_i is minimising pow_i(v) = |v|² − 2 f_i(v) = |v − c_i|² − w_i, with
   // c_i = a_i.xy and w_i = 2 a_i.z + |c_i|².
   std::vector<Vec2> centers(dual.size());
@@ -478,7 +501,7 @@ std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const Con
     centers[i] = dual[i].head<2>();
     power_weight[i] = 2 * dual[i].z() + centers[i].squaredNorm();
   }
-  return build_power_diagram(centers, power_weight, domain);
+  return build_power_diagram(centers, power_weight, domain, anchors);
 }
 
 Hull3 convex_hull_3d(std::span<const Vec3> points) {

@@ -65,14 +65,18 @@ struct Adjacency {
 };
 
 /// Upper envelope of f_i(v) = a_i·(v, 1) over `domain`: cell i = {v ∈ domain : f_i ≥ f_j ∀j}.
-/// Boundary edges are labelled `boundary_label(k)` for domain edge k.
-std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain);
+/// Boundary edges are labelled `boundary_label(k)` for domain edge k. `anchors` (optional, one
+/// per site) are chart points near each site's cell — e.g. the site's own chart coordinates
+/// (Klein point, gnomonic point) — used to organise the search; the cells do not depend on them,
+/// only the speed does. Default: the power centres a_i.xy, right for the plane.
+std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,
+                                           std::span<const Vec2> anchors = {});
 
 /// The power diagram of centres c_i with power weights w_i (cell i = {v : |v − c_i|² − w_i ≤
 /// |v − c_j|² − w_j ∀j}) over `domain`; the same cells as `build_chart_diagram` with
 /// a_i = (c_i, (w_i − |c_i|²)/2), computed without cancellation when the caller has w directly.
 std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weights,
-                                          const ConvexPolygon& domain);
+                                          const ConvexPolygon& domain, std::span<const Vec2> anchors = {});
 
 /// Same, with the neighbour candidates already known (e.g. from a 3-D hull).
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,

@@ -1,0 +1,113 @@
+#pragma once
+/// \file sphere.hpp
+/// The unit sphere S² with the cost of Cui et al. (and of the reflector / Alexandrov problems):
+/// c(x, y) = −ln⟨x, y⟩ (+∞ when ⟨x, y⟩ ≤ 0). Weights are the paper's heights h_i
+/// (h_i = −ln cos r_i); the cell of site p_i is
+///
+///     W_i = {x : e^{h_i}⟨x, p_i⟩ ≥ e^{h_j}⟨x, p_j⟩ ∀j},
+///
+/// the radial projection of the face of P* = ∩{x : ⟨x, q_i⟩ ≤ 1}, q_i = e^{h_i} p_i (math.md §1).
+///
+/// Source domain: the whole sphere (default), a spherical cap or a convex spherical polygon.
+/// Cells are convex spherical polygons: vertices are unit 3-vectors, counter-clockwise seen from
+/// outside the sphere; edges are great-circle arcs, except the edges of a cap cell labelled with
+/// a boundary label, which are arcs of the cap's boundary circle (each spanning at most 90°
+/// around the cap's centre). Sites are 3-vectors, normalised on input.
+///
+/// On the whole sphere the sites must not all lie in one closed hemisphere (0 must be strictly
+/// inside their convex hull), otherwise some cell is unbounded; `validate_sites` rejects that.
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "sdot/chart_diagram.hpp"
+#include "sdot/density.hpp"
+#include "sdot/diagram.hpp"
+
+namespace sdot {
+
+class Sphere {
+public:
+  using Point = Eigen::Vector3d;
+
+  enum class Domain { sphere, cap, polygon };
+  /// How the whole-sphere diagram is built (both give the same cells up to rounding).
+  enum class Builder {
+    automatic,  ///< the default: currently `clipping`
+    clipping,   ///< per-cell clipping by the nearest sites, completed and certified with a kd-tree
+                ///< query at each cell vertex (exact for any heights; no Qhull)
+    hull,       ///< Qhull 3-D convex hull of q_i = e^{h_i}p_i, then per-cell clipping by hull neighbours
+  };
+
+  /// The whole sphere.
+  Sphere() = default;
+  /// The cap {x : ⟨x, center⟩ ≥ cos angle}, 0 < angle < π/2. Throws InputError("domain", ...).
+  static Sphere cap(const Point& center, double angle);
+  /// The convex spherical polygon with these vertices (either orientation, great-circle edges),
+  /// lying in an open hemisphere. Throws InputError naming the vertex.
+  static Sphere polygon(std::vector<Point> vertices);
+
+  static constexpr std::string_view name() { return "sphere"; }
+  [[nodiscard]] Domain domain() const { return domain_; }
+  /// Cap centre, or the centre of the polygon's chart (normalised vertex sum).
+  [[nodiscard]] const Point& center() const { return center_; }
+  [[nodiscard]] double cap_angle() const { return angle_; }
+  /// Polygon vertices, counter-clockwise seen from outside.
+  [[nodiscard]] const std::vector<Point>& polygon_vertices() const { return vertices_; }
+  /// Area of the source domain (4π for the whole sphere).
+  [[nodiscard]] double domain_area() const;
+
+  void set_builder(Builder builder) { builder_ = builder; }
+  [[nodiscard]] Builder builder() const { return builder_; }
+
+  /// −ln⟨x, y⟩ for unit vectors (+∞ when ⟨x, y⟩ ≤ 0); accurate for nearby points.
+  [[nodiscard]] static double cost(const Point& x, const Point& y);
+  /// Throws InputError for a zero vector, a non-finite coordinate or a duplicate (after
+  /// normalisation) naming the site, and for sites that cannot cover the domain: all in a closed
+  /// hemisphere (whole sphere), or some domain point at distance ≥ π/2 from every site.
+  void validate_sites(std::span<const Point> sites) const;
+  /// h = 0 (Voronoi) on the whole sphere; on a cap or polygon, math.md §3 "S²-cap" heights
+  /// whose cells are all non-empty (when every site lies in the open hemisphere around center()).
+  [[nodiscard]] Eigen::VectorXd default_weights(std::span<const Point> sites) const;
+  [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
+
+  /// Exact area (Van Oosterom–Strackee), exact first moment (edge formula); the cost
+  /// ∫ −ln⟨x, p⟩ dA by quadrature (no closed form), accurate to about 1e-13 relative.
+  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site) const;
+  /// By quadrature over centrally projected fan triangles (`triangle_rule(order)`).
+  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
+                                               const ScalarField<Point>& rho, int order) const;
+  /// ∫_{arc ab} 1/|∇(c_i − c_j)| ds = ⟨a_i, (b − a) × n̂⟩ / |a_i − a_j| with a = e^{h}p, exact.
+  [[nodiscard]] double facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i,
+                                    const Point& site_j, double weight_j) const;
+  /// (e^{h_i}/|a_i − a_j|) ∫ ρ⟨x, p_i⟩ ds by Gauss–Legendre in arc length.
+  [[nodiscard]] double facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i,
+                                    const Point& site_j, double weight_j, const ScalarField<Point>& rho,
+                                    int order) const;
+  /// M / |M|.
+  [[nodiscard]] Point centroid(const CellIntegrals<Point>& integrals) const {
+    return integrals.first_moment.normalized();
+  }
+  /// True when edge `label` of a cell is an arc of the cap's boundary circle (not a great arc).
+  [[nodiscard]] bool is_circle_arc(int label) const { return domain_ == Domain::cap && is_boundary(label); }
+
+  /// Points along edge k of a cell (great or small circle), `count` ≥ 2 of them, ends included.
+  [[nodiscard]] std::vector<Point> edge_points(const Cell<Point>& cell, std::size_t k, int count) const;
+
+private:
+  Diagram<Point> build_whole_sphere(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
+  Diagram<Point> build_in_chart(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
+
+  Domain domain_ = Domain::sphere;
+  Builder builder_ = Builder::automatic;
+  Point center_ = Point::UnitZ();
+  double angle_ = 0;
+  std::vector<Point> vertices_;
+  Eigen::Matrix3d frame_ = Eigen::Matrix3d::Identity();  ///< columns t1, t2, center (right-handed)
+  ConvexPolygon chart_domain_;  ///< the domain in the gnomonic chart at center (cap: a bounding square)
+};
+
+}  // namespace sdot

@@ -1,0 +1,879 @@
+// The sphere S² with the cost −ln⟨x, y⟩ (math.md §1, §2, §5).
+#include "sdot/geometries/sphere.hpp"
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include "sdot/error.hpp"
+#include "sdot/quadrature.hpp"
+
+namespace sdot {
+namespace {
+
+constexpr double pi = std::numbers::pi;
+constexpr int arc_label = boundary_label(0);  // the cap's boundary circle
+
+double cross2(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
+
+/// A right-handed orthonormal frame (t1, t2, c): t1 × t2 = c. Counter-clockwise in the gnomonic
+/// chart v ↦ (t1 v₁ + t2 v₂ + c)/|·| is counter-clockwise seen from outside the sphere.
+Eigen::Matrix3d frame_at(const Vec3& c) {
+  const Vec3 helper = std::abs(c.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
+  const Vec3 t1 = (helper - helper.dot(c) * c).normalized();
+  Eigen::Matrix3d frame;
+  frame.col(0) = t1;
+  frame.col(1) = c.cross(t1);
+  frame.col(2) = c;
+  return frame;
+}
+
+/// Signed area of the spherical triangle abc (positive when counter-clockwise seen from outside),
+/// Van Oosterom–Strackee with det(a, b, c) = det(a, b − a, c − a) for accuracy on small triangles.
+double triangle_area(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const double det = a.dot((b - a).cross(c - a));
+  return 2 * std::atan2(det, 1 + a.dot(b) + b.dot(c) + c.dot(a));
+}
+
+/// Angle swept counter-clockwise (seen from outside) around `center` from a to b (in (−π, π]).
+double arc_angle(const Vec3& a, const Vec3& b, const Vec3& center) {
+  return std::atan2(center.dot(a.cross(b)), a.dot(b) - a.dot(center) * b.dot(center));
+}
+
+/// Point at angle θ counter-clockwise around `center` from a.
+Vec3 rotate_about(const Vec3& a, const Vec3& center, double theta) {
+  const double along = a.dot(center);
+  const Vec3 radial = a - along * center;
+  return along * center + std::cos(theta) * radial + std::sin(theta) * center.cross(radial);
+}
+
+/// Accurate −ln⟨x, p⟩ = ½ ln(1 + tan²θ) for any positive multiple x of a unit vector.
+double log_cost(const Vec3& x, const Vec3& p) {
+  const double c = x.dot(p);
+  if (!(c > 0)) return INFINITY;
+  return 0.5 * std::log1p(x.cross(p).squaredNorm() / (c * c));
+}
+
+ChartCell chart_square(double half) {
+  ChartCell cell;
+  cell.vertices = {{-half, -half}, {half, -half}, {half, half}, {-half, half}};
+  cell.neighbors = {boundary_label(0), boundary_label(1), boundary_label(2), boundary_label(3)};
+  return cell;
+}
+
+bool has_boundary_edge(const ChartCell& cell) {
+  return std::any_of(cell.neighbors.begin(), cell.neighbors.end(), [](int l) { return is_boundary(l); });
+}
+
+/// Maps a cell of the gnomonic chart with frame `frame` to unit vectors.
+Cell<Vec3> to_sphere(const ChartCell& chart, const Eigen::Matrix3d& frame) {
+  Cell<Vec3> cell;
+  if (chart.empty()) return cell;
+  cell.vertices.reserve(chart.size());
+  for (const auto& v : chart.vertices) cell.vertices.push_back((frame * Vec3(v.x(), v.y(), 1)).normalized());
+  cell.neighbors = chart.neighbors;
+  return cell;
+}
+
+/// Sites in a uniform 3-D grid over [−1, 1]³ (bins sorted by index), for neighbour searches.
+class SiteGrid {
+public:
+  explicit SiteGrid(std::span<const Vec3> points) {
+    const double n = static_cast<double>(points.size());
+    size_ = std::max(1, static_cast<int>(std::min(std::sqrt(n / 12.0), std::cbrt(8 * n))));
+    width_ = 2.0 / size_;
+    const std::size_t bins = static_cast<std::size_t>(size_) * size_ * size_;
+    start_.assign(bins + 1, 0);
+    std::vector<int> key(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      key[i] = index(coordinate(points[i].x()), coordinate(points[i].y()), coordinate(points[i].z()));
+      ++start_[key[i] + 1];
+    }
+    for (std::size_t b = 0; b < bins; ++b) start_[b + 1] += start_[b];
+    items_.resize(points.size());
+    std::vector<int> fill(start_.begin(), start_.end() - 1);
+    for (std::size_t i = 0; i < points.size(); ++i) items_[fill[key[i]]++] = static_cast<int>(i);
+  }
+  [[nodiscard]] int size() const { return size_; }
+  /// The k-th site in bin order.
+  [[nodiscard]] int site(std::size_t k) const { return items_[k]; }
+  [[nodiscard]] double width() const { return width_; }
+  [[nodiscard]] int coordinate(double x) const {
+    return std::clamp(static_cast<int>(std::floor((x + 1) / width_)), 0, size_ - 1);
+  }
+  [[nodiscard]] int index(int x, int y, int z) const { return (x * size_ + y) * size_ + z; }
+  /// Calls f(j) for every site in the bins at Chebyshev distance exactly r from bin (x, y, z).
+  template <class F>
+  void ring(int x, int y, int z, int r, F&& f) const {
+    for (int dx = -r; dx <= r; ++dx) {
+      const int ix = x + dx;
+      if (ix < 0 || ix >= size_) continue;
+      for (int dy = -r; dy <= r; ++dy) {
+        const int iy = y + dy;
+        if (iy < 0 || iy >= size_) continue;
+        const bool face = std::abs(dx) == r || std::abs(dy) == r;
+        for (int dz = -r; dz <= r; dz += face ? 1 : std::max(2 * r, 1)) {
+          const int iz = z + dz;
+          if (iz < 0 || iz >= size_) continue;
+          const int b = index(ix, iy, iz);
+          for (int k = start_[b]; k < start_[b + 1]; ++k) f(items_[k]);
+        }
+      }
+    }
+  }
+  /// Calls f(j) for every site in the bins meeting the box [lo, hi].
+  template <class F>
+  void box(const Vec3& lo, const Vec3& hi, F&& f) const {
+    for (int ix = coordinate(lo.x()); ix <= coordinate(hi.x()); ++ix)
+      for (int iy = coordinate(lo.y()); iy <= coordinate(hi.y()); ++iy)
+        for (int iz = coordinate(lo.z()); iz <= coordinate(hi.z()); ++iz) {
+          const int b = index(ix, iy, iz);
+          for (int k = start_[b]; k < start_[b + 1]; ++k) f(items_[k]);
+        }
+  }
+
+private:
+  int size_ = 1;
+  double width_ = 2;
+  std::vector<int> start_, items_;
+};
+
+/// A kd-tree over the sites with the largest scale e^{h} per node, for exact branch-and-bound
+/// "which sites beat level L at x" queries: e^{h_j}⟨x, p_j⟩ > L. Each node keeps a cone (unit
+/// axis c, angular radius α) containing its sites, so max_j ⟨x, p_j⟩ ≤ cos(max(0, ∠(x, c) − α)).
+class ScaleTree {
+public:
+  ScaleTree(std::span<const Vec3> points, std::span<const double> scales)
+      : points_(points), scales_(scales), order_(points.size()) {
+    for (std::size_t k = 0; k < order_.size(); ++k) order_[k] = static_cast<int>(k);
+    nodes_.reserve(2 * points.size() / leaf_size + 2);
+    if (!points.empty()) build(0, static_cast<int>(points.size()));
+  }
+  template <class Found>
+  void above(const Vec3& x, double level, Found&& found) const {
+    if (nodes_.empty()) return;
+    int stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const Node& node = nodes_[stack[--top]];
+      const double c = x.dot(node.axis);
+      if (c < node.cos_radius) {
+        const double bound = c * node.cos_radius + std::sqrt(std::max(0.0, 1 - c * c)) * node.sin_radius;
+        if (node.max_scale * bound <= level) continue;
+      } else if (node.max_scale <= level) {
+        continue;
+      }
+      if (node.left < 0) {
+        for (int k = node.begin; k < node.end; ++k) {
+          const int j = order_[k];
+          if (scales_[j] * x.dot(points_[j]) > level) found(j);
+        }
+      } else {
+        stack[top++] = node.left;
+        stack[top++] = node.right;
+      }
+    }
+  }
+
+private:
+  static constexpr int leaf_size = 8;
+  struct Node {
+    Vec3 axis;
+    double cos_radius, sin_radius, max_scale;
+    int begin, end, left = -1, right = -1;
+  };
+  int build(int begin, int end) {
+    const int index = static_cast<int>(nodes_.size());
+    nodes_.push_back({});
+    Vec3 low = Vec3::Constant(INFINITY), high = Vec3::Constant(-INFINITY), sum = Vec3::Zero();
+    double max_scale = 0;
+    for (int k = begin; k < end; ++k) {
+      low = low.cwiseMin(points_[order_[k]]);
+      high = high.cwiseMax(points_[order_[k]]);
+      sum += points_[order_[k]];
+      max_scale = std::max(max_scale, scales_[order_[k]]);
+    }
+    // The cone: axis along the mean direction, radius the largest angle to a member (padded).
+    Vec3 axis = sum.norm() > 1e-12 ? Vec3(sum.normalized()) : Vec3::UnitZ();
+    double cos_radius = 1;
+    for (int k = begin; k < end; ++k) cos_radius = std::min(cos_radius, axis.dot(points_[order_[k]]));
+    cos_radius = std::max(-1.0, cos_radius - 1e-12);
+    const double sin_radius = std::sqrt(std::max(0.0, 1 - cos_radius * cos_radius)) + 1e-12;
+    int left = -1, right = -1;
+    if (end - begin > leaf_size) {
+      Eigen::Index split = 0;
+      (high - low).maxCoeff(&split);
+      const int middle = (begin + end) / 2;
+      std::nth_element(order_.begin() + begin, order_.begin() + middle, order_.begin() + end,
+                       [&](int a, int b) { return points_[a][split] < points_[b][split]; });
+      left = build(begin, middle);
+      right = build(middle, end);
+    }
+    nodes_[index] = {axis, cos_radius, sin_radius, max_scale, begin, end, left, right};
+    return index;
+  }
+  std::span<const Vec3> points_;
+  std::span<const double> scales_;
+  std::vector<int> order_;
+  std::vector<Node> nodes_;
+};
+
+/// Clips the chart cell of site i (gnomonic chart at p_i with tangent frame t1, t2) with the
+/// half-plane ⟨X, q_i − q_j⟩ ≥ 0, X = t1 v₁ + t2 v₂ + p_i, divided by e^{h_j} and written without
+/// cancellation: −⟨p_j − p_i, t⟩·v + expm1(h_i − h_j) + |p_i − p_j|²/2 ≥ 0.
+struct HalfPlane {
+  Vec2 normal;
+  double offset;
+};
+inline HalfPlane bisector(const Eigen::Matrix3d& frame, const Vec3& p_i, double hi, const Vec3& pj, double hj) {
+  const Vec3 d = pj - p_i;
+  return {Vec2(-d.dot(frame.col(0)), -d.dot(frame.col(1))), std::expm1(hi - hj) + 0.5 * d.squaredNorm()};
+}
+
+/// Largest |v| over the chart cell's vertices.
+double chart_radius(const ChartCell& cell) {
+  double r2 = 0;
+  for (const auto& v : cell.vertices) r2 = std::max(r2, v.squaredNorm());
+  return std::sqrt(r2);
+}
+
+/// Largest piece (chord) of the fan triangles before quadrature: larger ones are subdivided.
+constexpr double largest_piece = 0.3;
+
+/// Quadrature nodes of a cell: calls f(x, dA) with x a unit vector. Fan from the normalised
+/// vertex mean o; great-circle edges give centrally projected flat triangles (o, a, b), split
+/// into m² sub-triangles when larger than `largest_piece`, each with the collapsed Gauss rule
+/// (dA = det(o, a, b)/|X|³ ds dt); cap-circle arcs give curved triangles X = o + s(γ(t) − o),
+/// split into m × m pieces with a tensor Gauss–Legendre rule (dA = s·det(o, γ, γ')/|X|³ ds dt).
+/// `order` may depend on the piece size (`order_for(size)`).
+template <class Order, class F>
+void for_each_node(const Sphere& sphere, const Cell<Vec3>& cell, Order&& order_for, F&& f) {
+  Vec3 o = Vec3::Zero();
+  for (const auto& v : cell.vertices) o += v;
+  o.normalize();
+  const std::size_t n = cell.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    const Vec3& a = cell.vertices[k];
+    const Vec3& b = cell.vertices[(k + 1) % n];
+    if (!sphere.is_circle_arc(cell.neighbors[k])) {
+      const Vec3 ab = a - o, ac = b - o;
+      const double det = o.dot(ab.cross(ac));
+      if (det == 0) continue;
+      const double size = std::max({ab.norm(), ac.norm(), (b - a).norm()});
+      const int m = std::max(1, static_cast<int>(std::ceil(size / largest_piece)));
+      const auto& triangle = triangle_rule(order_for(size / m));
+      const double scale = det / (m * m);
+      auto sub = [&](double s0, double t0, double ds1, double dt1, double ds2, double dt2) {
+        for (const auto& node : triangle) {
+          const double s = s0 + node.s * ds1 + node.t * ds2, t = t0 + node.s * dt1 + node.t * dt2;
+          const Vec3 x = o + s * ab + t * ac;
+          const double r = x.norm();
+          f(Vec3(x / r), node.weight * scale / (r * r * r));
+        }
+      };
+      const double h = 1.0 / m;
+      for (int u = 0; u < m; ++u)
+        for (int v = 0; u + v < m; ++v) {
+          sub(u * h, v * h, h, 0, 0, h);                         // (u,v) (u+1,v) (u,v+1)
+          if (u + v + 2 <= m) sub((u + 1) * h, v * h, 0, h, -h, h);  // (u+1,v) (u+1,v+1) (u,v+1)
+        }
+    } else {
+      const Vec3& c = sphere.center();
+      const double phi = arc_angle(a, b, c);
+      const double size = std::max({(a - o).norm(), (b - o).norm(), phi * std::sin(sphere.cap_angle())});
+      const int m = std::max(1, static_cast<int>(std::ceil(size / largest_piece)));
+      const auto& line = gauss_legendre(order_for(size / m));
+      const double h = 1.0 / m;
+      for (int pt = 0; pt < m; ++pt)
+        for (const auto& nt : line) {
+          const double t = (pt + nt.x) * h;
+          const Vec3 g = rotate_about(a, c, t * phi);
+          const Vec3 dg = phi * c.cross(g);
+          const double det = o.dot(g.cross(dg));
+          for (int ps = 0; ps < m; ++ps)
+            for (const auto& ns : line) {
+              const double s = (ps + ns.x) * h;
+              const Vec3 x = o + s * (g - o);
+              const double r = x.norm();
+              f(Vec3(x / r), ns.weight * nt.weight * h * h * s * det / (r * r * r));
+            }
+        }
+    }
+  }
+}
+
+/// Quadrature order for the uniform transport cost, from the piece size (chord): the integrand
+/// is smooth, so small pieces need few points for ~1e-14 relative accuracy.
+int cost_order(double size) {
+  if (size < 0.02) return 4;
+  if (size < 0.06) return 5;
+  if (size < 0.15) return 6;
+  return 8;
+}
+
+}  // namespace
+
+// ---- construction ----------------------------------------------------------------------
+
+Sphere Sphere::cap(const Point& center, double angle) {
+  if (!center.allFinite()) throw InputError("domain.center", "coordinate is not finite");
+  if (!(center.norm() > 0)) throw InputError("domain.center", "is the zero vector");
+  if (!(angle > 0 && angle < pi / 2))
+    throw InputError("domain.angle", "must be in (0, π/2) radians, got " + std::to_string(angle));
+  Sphere sphere;
+  sphere.domain_ = Domain::cap;
+  sphere.center_ = center.normalized();
+  sphere.angle_ = angle;
+  sphere.frame_ = frame_at(sphere.center_);
+  const double half = 1.5 * std::tan(angle);
+  sphere.chart_domain_ = ConvexPolygon::rectangle(-half, -half, half, half);
+  return sphere;
+}
+
+Sphere Sphere::polygon(std::vector<Point> vertices) {
+  if (vertices.size() < 3)
+    throw InputError("domain", "a polygon needs at least 3 vertices, got " + std::to_string(vertices.size()));
+  Vec3 sum = Vec3::Zero();
+  for (std::size_t k = 0; k < vertices.size(); ++k) {
+    if (!vertices[k].allFinite()) throw InputError(indexed("domain", k), "vertex is not finite");
+    if (!(vertices[k].norm() > 0)) throw InputError(indexed("domain", k), "is the zero vector");
+    vertices[k].normalize();
+    sum += vertices[k];
+  }
+  if (!(sum.norm() > 1e-12)) throw InputError("domain", "the polygon must lie in an open hemisphere");
+  Sphere sphere;
+  sphere.domain_ = Domain::polygon;
+  sphere.center_ = sum.normalized();
+  sphere.frame_ = frame_at(sphere.center_);
+  std::vector<Vec2> chart;
+  for (std::size_t k = 0; k < vertices.size(); ++k) {
+    const Vec3 local = sphere.frame_.transpose() * vertices[k];
+    if (!(local.z() > 1e-9))
+      throw InputError(indexed("domain", k), "the polygon must lie in an open hemisphere (it is too large)");
+    chart.emplace_back(local.x() / local.z(), local.y() / local.z());
+  }
+  sphere.chart_domain_ = ConvexPolygon(std::move(chart), "domain");
+  for (const auto& v : sphere.chart_domain_.vertices())
+    sphere.vertices_.push_back((sphere.frame_ * Vec3(v.x(), v.y(), 1)).normalized());
+  return sphere;
+}
+
+double Sphere::domain_area() const {
+  switch (domain_) {
+    case Domain::cap: return 4 * pi * std::pow(std::sin(angle_ / 2), 2);
+    case Domain::polygon: {
+      double area = 0;
+      for (std::size_t k = 1; k + 1 < vertices_.size(); ++k)
+        area += triangle_area(vertices_[0], vertices_[k], vertices_[k + 1]);
+      return area;
+    }
+    case Domain::sphere:
+    default: return 4 * pi;
+  }
+}
+
+double Sphere::cost(const Point& x, const Point& y) { return log_cost(x.normalized(), y.normalized()); }
+
+// ---- sites -----------------------------------------------------------------------------
+
+void Sphere::validate_sites(std::span<const Point> sites) const {
+  std::vector<Vec3> p(sites.size());
+  for (std::size_t i = 0; i < sites.size(); ++i) {
+    if (!sites[i].allFinite()) throw InputError(indexed("sites", i), "coordinate is not finite");
+    const double norm = sites[i].norm();
+    if (!(norm > 0)) throw InputError(indexed("sites", i), "is the zero vector (a site is a direction in R³)");
+    p[i] = sites[i] / norm;
+  }
+  // Duplicates after normalisation (closer than 1e-14): search the grid around each site.
+  {
+    const SiteGrid grid(p);
+    const double tolerance = 1e-14;
+    const Vec3 slack = Vec3::Constant(tolerance);
+    std::size_t first_bad = sites.size(), partner = 0;
+#pragma omp parallel for schedule(static)
+    for (std::size_t i = 0; i < sites.size(); ++i) {
+      std::size_t found = sites.size();
+      grid.box(p[i] - slack, p[i] + slack, [&](int j) {
+        if (static_cast<std::size_t>(j) < i && (p[i] - p[j]).norm() <= tolerance)
+          found = std::min(found, static_cast<std::size_t>(j));
+      });
+      if (found < sites.size()) {
+#pragma omp critical
+        if (i < first_bad) first_bad = i, partner = found;
+      }
+    }
+    if (first_bad < sites.size())
+      throw InputError(indexed("sites", first_bad),
+                       "duplicate of sites[" + std::to_string(partner) + "] (after normalisation)");
+  }
+  if (domain_ == Domain::sphere) {
+    const std::string message =
+        "all sites lie in a closed hemisphere; on the whole sphere the origin must be strictly inside the "
+        "convex hull of the sites, otherwise a Laguerre cell is unbounded and the cost −ln⟨x, y⟩ is infinite on "
+        "part of it (add sites, or use a cap or polygon domain)";
+    if (p.size() < 4) throw InputError("sites", message);
+    // Cheap sufficient test: the sites nearest the 4 directions of a regular tetrahedron span a
+    // tetrahedron that strictly contains the origin. Otherwise decide with the convex hull.
+    const Vec3 directions[4] = {{1, 1, 1}, {1, -1, -1}, {-1, 1, -1}, {-1, -1, 1}};
+    Eigen::Matrix3d m;
+    Vec3 v0 = Vec3::Zero();
+    for (int d = 0; d < 4; ++d) {
+      std::size_t best = 0;
+      double best_dot = -INFINITY;
+      for (std::size_t i = 0; i < p.size(); ++i)
+        if (const double dot = p[i].dot(directions[d]); dot > best_dot) best_dot = dot, best = i;
+      if (d == 0) v0 = p[best];
+      else m.col(d - 1) = p[best] - v0;
+    }
+    // 0 = v0 + m λ; barycentric coordinates (1 − Σλ, λ) must all be positive.
+    const Vec3 lambda = m.fullPivLu().solve(-v0);
+    const bool inside = (m * lambda + v0).norm() < 1e-12 && lambda.minCoeff() > 1e-9 && 1 - lambda.sum() > 1e-9;
+    if (!inside) {
+      bool ok = false;
+      try {
+        ok = convex_hull_3d(p).max_facet_offset < -1e-12;
+      } catch (const Error&) {
+        ok = false;  // degenerate hull: all sites on one plane through... or near it
+      }
+      if (!ok) throw InputError("sites", message);
+    }
+    return;
+  }
+  // Cap or polygon: every point of the domain must see some site at distance < π/2. Checked on
+  // the Voronoi diagram: the minimum of ⟨x, p_i⟩ over cell i (attained on its boundary) is > 0.
+  const Diagram<Point> voronoi = build_diagram(sites, Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p.size())));
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const auto& cell = voronoi.cells[i];
+    double lowest = INFINITY;
+    for (std::size_t k = 0; k < cell.size(); ++k) {
+      const Vec3& a = cell.vertices[k];
+      lowest = std::min(lowest, a.dot(p[i]));
+      if (!is_circle_arc(cell.neighbors[k])) continue;
+      // f(θ) = K + U cos θ + V sin θ along the arc; its minimum over the circle is at θ*.
+      const double phi = arc_angle(a, cell.vertices[(k + 1) % cell.size()], center_);
+      const Vec3 radial = a - a.dot(center_) * center_;
+      const double u = radial.dot(p[i]), v = center_.cross(radial).dot(p[i]);
+      double theta = std::atan2(v, u) + pi;
+      if (theta >= 2 * pi) theta -= 2 * pi;
+      if (theta <= phi) lowest = std::min(lowest, a.dot(center_) * center_.dot(p[i]) - std::hypot(u, v));
+    }
+    if (!(lowest > 1e-12))
+      throw InputError("sites", "part of the source domain is at distance >= π/2 from every site (near sites[" +
+                                    std::to_string(i) + "]), where the cost −ln⟨x, y⟩ is infinite");
+  }
+}
+
+Eigen::VectorXd Sphere::default_weights(std::span<const Point> sites) const {
+  const auto n = static_cast<Eigen::Index>(sites.size());
+  Eigen::VectorXd weights = Eigen::VectorXd::Zero(n);
+  if (domain_ == Domain::sphere) return weights;
+  // math.md §3 (S²-cap, κ = +1): z_i the chart coordinates, h_i = ½ln(1 + |z|²) − ln(1 + τ|z|²);
+  // then u_i = 2τz_i/(1 − τ|z_i|²) lies in W_i, and τ is chosen so that every u_i is in the domain.
+  std::vector<Vec2> z(sites.size());
+  std::vector<char> visible(sites.size(), 0);
+  double tau = 1;
+  for (std::size_t i = 0; i < sites.size(); ++i) {
+    const Vec3 local = frame_.transpose() * sites[i].normalized();
+    if (!(local.z() > 1e-9)) continue;
+    visible[i] = 1;
+    z[i] = local.head<2>() / local.z();
+    const double length = z[i].norm();
+    if (length == 0) continue;
+    const Vec2 direction = z[i] / length;
+    double exit = INFINITY;  // distance from the chart origin to the domain boundary along z_i
+    if (domain_ == Domain::cap) {
+      exit = std::tan(angle_);
+    } else {
+      const auto& boundary = chart_domain_.vertices();
+      for (std::size_t k = 0; k < boundary.size(); ++k) {
+        const Vec2& a = boundary[k];
+        const Vec2& b = boundary[(k + 1) % boundary.size()];
+        const double rate = cross2(b - a, direction);
+        if (rate < 0) exit = std::min(exit, cross2(b - a, -a) / -rate);
+      }
+    }
+    const double target = 0.9 * exit;
+    tau = std::min(tau, target / (2 * length + target * length * length));
+  }
+  double lowest = INFINITY;
+  for (std::size_t i = 0; i < sites.size(); ++i) {
+    if (!visible[i]) continue;
+    const double r2 = z[i].squaredNorm();
+    weights[static_cast<Eigen::Index>(i)] = 0.5 * std::log1p(r2) - std::log1p(tau * r2);
+    lowest = std::min(lowest, weights[static_cast<Eigen::Index>(i)]);
+  }
+  // Sites behind the domain's hemisphere: no guarantee; give them the lowest height.
+  for (std::size_t i = 0; i < sites.size(); ++i)
+    if (!visible[i]) weights[static_cast<Eigen::Index>(i)] = std::isfinite(lowest) ? lowest : 0;
+  return weights;
+}
+
+// ---- diagrams --------------------------------------------------------------------------
+
+Diagram<Sphere::Point> Sphere::build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const {
+  if (domain_ == Domain::sphere) return build_whole_sphere(sites, weights);
+  return build_in_chart(sites, weights);
+}
+
+Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, const Eigen::VectorXd& weights) const {
+  const std::size_t n = sites.size();
+  std::vector<Vec3> p(n);
+  std::vector<double> h(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    p[i] = sites[i].normalized();
+    h[i] = weights[static_cast<Eigen::Index>(i)];
+  }
+  Diagram<Point> diagram;
+  diagram.cells.resize(n);
+  if (n < 4) return diagram;  // never bounded (validate_sites rejects this)
+
+  // Clips `cell` by site j unless the half-plane contains the disk |v| ≤ radius around the
+  // cell (cheap rejection); keeps `radius` an upper bound of max |v| over the cell.
+  auto clip_with = [&](ChartCell& cell, double& radius, const Eigen::Matrix3d& frame, std::size_t i, int j) {
+    const HalfPlane half = bisector(frame, p[i], h[i], p[static_cast<std::size_t>(j)], h[static_cast<std::size_t>(j)]);
+    if (half.offset >= half.normal.norm() * radius) return;
+    clip(cell, half.normal, half.offset, j);
+    radius = chart_radius(cell);
+  };
+
+  const double spacing = std::sqrt(4 * pi / static_cast<double>(n));
+  const bool use_hull = builder_ == Builder::hull;
+  if (use_hull) {
+    std::vector<Vec3> q(n);
+    for (std::size_t i = 0; i < n; ++i) q[i] = std::exp(h[i]) * p[i];
+    Hull3 hull;
+    try {
+      hull = convex_hull_3d(q);
+    } catch (const Error&) {
+      return diagram;  // degenerate: all cells empty, so the line search rejects this step
+    }
+    if (!(hull.max_facet_offset < 0)) return diagram;  // hemisphere condition violated
+    const double m = -hull.max_facet_offset;
+    const auto count = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(dynamic, 256)
+    for (std::ptrdiff_t s = 0; s < count; ++s) {
+      const auto i = static_cast<std::size_t>(s);
+      if (!hull.is_vertex[i]) continue;  // q_i inside the hull: empty cell
+      // On W_i, ⟨x, p_i⟩ ≥ m e^{−h_i}, so |v| ≤ √(e^{2h_i}/m² − 1) in the chart at p_i (math.md §5).
+      const double scale = std::exp(h[i]) / m;
+      const double half = 1.1 * std::sqrt(std::max(scale * scale - 1, 0.0)) + 1e-9;
+      const Eigen::Matrix3d frame = frame_at(p[i]);
+      ChartCell cell = chart_square(half);
+      double radius = chart_radius(cell);
+      for (int j : hull.edges.of(i)) {
+        clip_with(cell, radius, frame, i, j);
+        if (cell.empty()) break;
+      }
+      if (has_boundary_edge(cell)) cell = ChartCell{};  // cannot happen when 0 is inside the hull
+      diagram.cells[i] = to_sphere(cell, frame);
+    }
+    return diagram;
+  }
+
+  // Clipping, certified: each cell starts as a square of the chart at p_i clipped by the sites
+  // of the nearest grid bins (nearest first); then, while some site j beats site i at a vertex x
+  // of the cell (e^{h_j}⟨x, p_j⟩ > e^{h_i}⟨x, p_i⟩, found exactly by a kd-tree with the largest
+  // e^{h} per node), the cell is clipped by it. A half-plane that cuts a convex polygon excludes
+  // one of its vertices, so the loop ends with the exact cell whatever the heights.
+  const SiteGrid grid(p);
+  std::vector<double> scale(n);
+  for (std::size_t i = 0; i < n; ++i) scale[i] = std::exp(h[i]);
+  const ScaleTree tree(p, scale);
+  const double initial_half = std::min(4 * spacing, 2.0);
+  constexpr double largest_half = 1e4;
+  const auto count = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel
+  {
+    std::vector<std::pair<double, int>> candidates;
+    std::vector<int> processed, pending;
+#pragma omp for schedule(dynamic, 256)
+    for (std::ptrdiff_t s = 0; s < count; ++s) {
+      const auto i = static_cast<std::size_t>(grid.site(static_cast<std::size_t>(s)));  // grid order: locality
+      const Eigen::Matrix3d frame = frame_at(p[i]);
+      const int bx = grid.coordinate(p[i].x()), by = grid.coordinate(p[i].y()), bz = grid.coordinate(p[i].z());
+      candidates.clear();
+      for (int r = 0; r < 2; ++r)
+        grid.ring(bx, by, bz, r, [&](int j) {
+          if (static_cast<std::size_t>(j) != i) candidates.emplace_back((p[static_cast<std::size_t>(j)] - p[i]).squaredNorm(), j);
+        });
+      std::sort(candidates.begin(), candidates.end());
+      double half = initial_half;
+      ChartCell cell;
+      for (;;) {
+        cell = chart_square(half);
+        double radius = chart_radius(cell);
+        processed.clear();
+        for (const auto& [distance2, j] : candidates) {
+          clip_with(cell, radius, frame, i, j);
+          processed.push_back(j);
+          if (cell.empty()) break;
+        }
+        std::sort(processed.begin(), processed.end());
+        while (!cell.empty()) {
+          pending.clear();
+          for (const auto& v : cell.vertices) {
+            const Vec3 x = (frame * Vec3(v.x(), v.y(), 1)).normalized();
+            // Slightly below the vertex's own level: the sites defining the vertex tie with i
+            // there and are skipped as processed; clipping by a near-tie is harmless.
+            const double level = scale[i] * x.dot(p[i]) * (1 - 1e-14);
+            tree.above(x, level, [&](int j) {
+              if (static_cast<std::size_t>(j) != i && !std::binary_search(processed.begin(), processed.end(), j))
+                pending.push_back(j);
+            });
+          }
+          if (pending.empty()) break;
+          std::sort(pending.begin(), pending.end());
+          pending.erase(std::unique(pending.begin(), pending.end()), pending.end());
+          for (int j : pending) {
+            clip_with(cell, radius, frame, i, j);
+            if (cell.empty()) break;
+          }
+          processed.insert(processed.end(), pending.begin(), pending.end());
+          std::sort(processed.begin(), processed.end());
+        }
+        if (cell.empty()) {
+          if (half < largest_half) {  // the cell may lie outside the square: look again, wider
+            half = largest_half;
+            continue;
+          }
+          break;
+        }
+        if (has_boundary_edge(cell)) {
+          if (half < largest_half) {
+            half = std::min(8 * half, largest_half);
+            continue;
+          }
+          cell = ChartCell{};  // unbounded: the sites are in a closed hemisphere
+          break;
+        }
+        // Found with a large square: redo with a tight one for accuracy.
+        if (half > 8 * radius && half > initial_half) {
+          half = std::max(2 * radius, initial_half);
+          continue;
+        }
+        break;
+      }
+      diagram.cells[i] = to_sphere(cell, frame);
+    }
+  }
+  return diagram;
+}
+
+Diagram<Sphere::Point> Sphere::build_in_chart(std::span<const Point> sites, const Eigen::VectorXd& weights) const {
+  const std::size_t n = sites.size();
+  std::vector<Vec3> dual(n), p(n);
+  std::vector<double> h(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    p[i] = sites[i].normalized();
+    h[i] = weights[static_cast<Eigen::Index>(i)];
+    dual[i] = frame_.transpose() * (std::exp(h[i]) * p[i]);
+  }
+  // Neighbour candidates from the chart's regular triangulation; each cell is the chart domain
+  // clipped by them, with the half-planes ⟨X, q_i − q_j⟩ ≥ 0 written without cancellation:
+  // (q_i − q_j)e^{−h_j} = expm1(h_i − h_j) p_i + (p_i − p_j).
+  const Adjacency candidates = chart_adjacency(dual, chart_domain_);
+  std::vector<ChartCell> chart(n);
+  const auto& boundary = chart_domain_.vertices();
+  const auto count_all = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::ptrdiff_t s = 0; s < count_all; ++s) {
+    const auto i = static_cast<std::size_t>(s);
+    const auto neighbors = candidates.of(i);
+    if (neighbors.empty()) continue;
+    ChartCell& cell = chart[i];
+    cell.vertices.assign(boundary.begin(), boundary.end());
+    cell.neighbors.resize(boundary.size());
+    for (std::size_t k = 0; k < boundary.size(); ++k) cell.neighbors[k] = boundary_label(static_cast<int>(k));
+    for (int j : neighbors) {
+      if (j >= static_cast<int>(n)) continue;  // a helper function of chart_adjacency
+      const auto u = static_cast<std::size_t>(j);
+      const Vec3 difference = frame_.transpose() * (std::expm1(h[i] - h[u]) * p[i] + (p[i] - p[u]));
+      clip(cell, difference.head<2>(), difference.z(), j);
+      if (cell.empty()) break;
+    }
+  }
+  Diagram<Point> diagram;
+  diagram.cells.resize(n);
+  if (domain_ == Domain::polygon) {
+    for (std::size_t i = 0; i < n; ++i) diagram.cells[i] = to_sphere(chart[i], frame_);
+    return diagram;
+  }
+  // Cap: intersect each chart polygon with the disk |v| ≤ tan(angle) exactly; the parts of the
+  // circle become edges labelled `arc_label`, split so that each spans at most 90°.
+  const double radius = std::tan(angle_);
+  const double radius2 = radius * radius;
+  const auto count = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::ptrdiff_t s = 0; s < count; ++s) {
+    const ChartCell& polygon = chart[static_cast<std::size_t>(s)];
+    if (polygon.empty()) continue;
+    ChartCell disk_cell;
+    const std::size_t m = polygon.size();
+    bool contains_center = true;
+    for (std::size_t k = 0; k < m; ++k) {
+      const Vec2& a = polygon.vertices[k];
+      const Vec2& b = polygon.vertices[(k + 1) % m];
+      if (cross2(b - a, -a) < 0) contains_center = false;
+      const Vec2 d = b - a;
+      const double qa = d.squaredNorm(), qb = a.dot(d), qc = a.squaredNorm() - radius2;
+      if (qa == 0) {
+        if (qc <= 0) {
+          disk_cell.vertices.push_back(a);
+          disk_cell.neighbors.push_back(polygon.neighbors[k]);
+        }
+        continue;
+      }
+      const double discriminant = qb * qb - qa * qc;
+      if (discriminant <= 0) continue;
+      const double root = std::sqrt(discriminant);
+      double t0 = (-qb - root) / qa, t1 = (-qb + root) / qa;
+      if (t0 < 1e-13) t0 = 0;
+      if (t1 > 1 - 1e-13) t1 = 1;
+      if (!(t0 < t1) || t1 <= 0 || t0 >= 1) continue;
+      disk_cell.vertices.push_back(t0 == 0 ? a : Vec2(a + t0 * d));
+      disk_cell.neighbors.push_back(polygon.neighbors[k]);
+      if (t1 < 1) {
+        disk_cell.vertices.push_back(a + t1 * d);
+        disk_cell.neighbors.push_back(arc_label);
+      }
+    }
+    if (disk_cell.vertices.empty()) {
+      if (!contains_center) continue;  // disjoint from the cap
+      for (int k = 0; k < 4; ++k) {  // the whole cap
+        disk_cell.vertices.emplace_back(radius * std::cos(k * pi / 2), radius * std::sin(k * pi / 2));
+        disk_cell.neighbors.push_back(arc_label);
+      }
+    }
+    // Split circle arcs longer than 90°.
+    ChartCell split;
+    const std::size_t size = disk_cell.size();
+    for (std::size_t k = 0; k < size; ++k) {
+      const Vec2& a = disk_cell.vertices[k];
+      split.vertices.push_back(a);
+      split.neighbors.push_back(disk_cell.neighbors[k]);
+      if (disk_cell.neighbors[k] != arc_label) continue;
+      const Vec2& b = disk_cell.vertices[(k + 1) % size];
+      double phi = std::atan2(cross2(a, b), a.dot(b));
+      if (phi < -1e-12) phi += 2 * pi;
+      const int pieces = static_cast<int>(std::ceil(phi / (pi / 2) - 1e-9));
+      const double start = std::atan2(a.y(), a.x());
+      for (int piece = 1; piece < pieces; ++piece) {
+        const double theta = start + phi * piece / pieces;
+        split.vertices.emplace_back(radius * std::cos(theta), radius * std::sin(theta));
+        split.neighbors.push_back(arc_label);
+      }
+    }
+    if (split.size() < 3) continue;
+    diagram.cells[static_cast<std::size_t>(s)] = to_sphere(split, frame_);
+  }
+  return diagram;
+}
+
+// ---- integrals -------------------------------------------------------------------------
+
+CellIntegrals<Sphere::Point> Sphere::integrate(const Cell<Point>& cell, const Point& site) const {
+  CellIntegrals<Point> result;
+  const std::size_t n = cell.size();
+  if (n < 3) return result;
+  const Vec3 p = site.normalized();
+  const Vec3& x0 = cell.vertices[0];
+  double area = 0;
+  Vec3 moment = Vec3::Zero();
+  for (std::size_t k = 0; k < n; ++k) {
+    const Vec3& a = cell.vertices[k];
+    const Vec3& b = cell.vertices[(k + 1) % n];
+    if (k >= 1 && k + 1 < n) area += triangle_area(x0, a, b);
+    if (is_circle_arc(cell.neighbors[k])) {
+      // The segment between the circle arc and the great arc ab: sector minus triangle; its
+      // first moment from the arc's inward conormal (c − cos α x)/sin α (math.md §2 extended).
+      const double phi = arc_angle(a, b, center_);
+      const double sin_half = std::sin(angle_ / 2);
+      area += phi * 2 * sin_half * sin_half - triangle_area(center_, a, b);
+      const double sin_a = std::sin(angle_), cos_a = std::cos(angle_);
+      moment += 0.5 * (phi * sin_a * sin_a * center_ - cos_a * center_.cross(a - b));
+    } else {
+      // ½ L n_in with n_in = a × b / |a × b| for a counter-clockwise edge.
+      const Vec3 normal = a.cross(b - a);
+      const double s = normal.norm();
+      if (s > 0) moment += (0.5 * std::atan2(s, a.dot(b)) / s) * normal;
+    }
+  }
+  result.mass = area;
+  result.first_moment = moment;
+  double cost = 0;
+  for_each_node(*this, cell, cost_order, [&](const Vec3& x, double w) { cost += w * log_cost(x, p); });
+  result.cost = cost;
+  return result;
+}
+
+CellIntegrals<Sphere::Point> Sphere::integrate(const Cell<Point>& cell, const Point& site,
+                                               const ScalarField<Point>& rho, int order) const {
+  CellIntegrals<Point> result;
+  if (cell.size() < 3) return result;
+  const Vec3 p = site.normalized();
+  for_each_node(*this, cell, [order](double) { return order; }, [&](const Vec3& x, double w) {
+    const double m = w * rho(x);
+    result.mass += m;
+    result.first_moment += m * x;
+    result.cost += m * log_cost(x, p);
+  });
+  return result;
+}
+
+double Sphere::facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i,
+                            const Point& site_j, double weight_j) const {
+  const Vec3 qi = std::exp(weight_i) * site_i.normalized();
+  const double gap = (qi - std::exp(weight_j) * site_j.normalized()).norm();
+  const Vec3 normal = a.cross(b - a);
+  const double s = normal.norm();
+  if (s == 0 || gap == 0) return 0;
+  // ∫_arc x ds = (b − a) × n̂ (math.md §2).
+  return qi.dot((b - a).cross(normal / s)) / gap;
+}
+
+double Sphere::facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i,
+                            const Point& site_j, double weight_j, const ScalarField<Point>& rho,
+                            int order) const {
+  const Vec3 qi = std::exp(weight_i) * site_i.normalized();
+  const double gap = (qi - std::exp(weight_j) * site_j.normalized()).norm();
+  const Vec3 normal = a.cross(b - a);
+  const double s = normal.norm();
+  if (s == 0 || gap == 0) return 0;
+  const double length = std::atan2(s, a.dot(b));
+  const Vec3 tangent = (normal / s).cross(a);  // unit tangent at a, towards b
+  double integral = 0;
+  for (const auto& node : gauss_legendre(order)) {
+    const double theta = node.x * length;
+    const Vec3 x = std::cos(theta) * a + std::sin(theta) * tangent;
+    integral += node.weight * rho(x) * x.dot(qi);
+  }
+  return integral * length / gap;
+}
+
+std::vector<Sphere::Point> Sphere::edge_points(const Cell<Point>& cell, std::size_t k, int count) const {
+  const Vec3& a = cell.vertices[k];
+  const Vec3& b = cell.vertices[(k + 1) % cell.size()];
+  std::vector<Point> points;
+  count = std::max(count, 2);
+  if (is_circle_arc(cell.neighbors[k])) {
+    const double phi = arc_angle(a, b, center_);
+    for (int m = 0; m < count; ++m) points.push_back(rotate_about(a, center_, phi * m / (count - 1)));
+  } else {
+    const Vec3 normal = a.cross(b - a);
+    const double s = normal.norm();
+    if (s == 0) return {a, b};
+    const double length = std::atan2(s, a.dot(b));
+    const Vec3 tangent = (normal / s).cross(a);
+    for (int m = 0; m < count; ++m) {
+      const double theta = length * m / (count - 1);
+      points.push_back(std::cos(theta) * a + std::sin(theta) * tangent);
+    }
+  }
+  return points;
+}
+
+}  // namespace sdot
