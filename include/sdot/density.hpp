@@ -24,11 +24,13 @@ using ScalarField = std::function<double(const Point&)>;
 /// ρ ≡ 1 with respect to the geometry's own area measure (intrinsic area on S² and H²).
 /// Integrated exactly by every geometry.
 struct UniformDensity {
+  /// `with_cost` false skips the transport cost (the solver needs it only at the end).
   template <class G>
   [[nodiscard]] CellIntegrals<typename G::Point> integrate_cell(const G& geometry,
                                                                const Cell<typename G::Point>& cell,
-                                                               const typename G::Point& site) const {
-    return geometry.integrate(cell, site);
+                                                               const typename G::Point& site,
+                                                               bool with_cost = true) const {
+    return geometry.integrate(cell, site, with_cost);
   }
   template <class G>
   [[nodiscard]] double facet_weight(const G& geometry, const typename G::Point& a,
@@ -48,9 +50,10 @@ struct FunctionDensity {
   ScalarField<Point> rho;
   int quadrature_order = 8;
 
+  /// The cost comes from the same quadrature nodes, so it is always computed.
   template <class G>
-  [[nodiscard]] CellIntegrals<Point> integrate_cell(const G& geometry, const Cell<Point>& cell,
-                                                    const Point& site) const {
+  [[nodiscard]] CellIntegrals<Point> integrate_cell(const G& geometry, const Cell<Point>& cell, const Point& site,
+                                                    bool /*with_cost*/ = true) const {
     return geometry.integrate(cell, site, rho, quadrature_order);
   }
   template <class G>
@@ -65,7 +68,7 @@ struct FunctionDensity {
 template <class D, class G>
 concept Density = requires(const D& density, const G& geometry, const Cell<typename G::Point>& cell,
                            const typename G::Point& point, double weight) {
-  { density.integrate_cell(geometry, cell, point) } -> std::same_as<CellIntegrals<typename G::Point>>;
+  { density.integrate_cell(geometry, cell, point, true) } -> std::same_as<CellIntegrals<typename G::Point>>;
   { density.facet_weight(geometry, point, point, point, weight, point, weight) } -> std::convertible_to<double>;
 };
 

@@ -49,12 +49,13 @@ struct Evaluation {
   std::vector<Eigen::Triplet<double>> facet_weights;
 };
 
-/// Builds the diagram and integrates every cell and (optionally) every facet.
+/// Builds the diagram and integrates every cell and (optionally) every facet; `with_cost` false
+/// leaves the cells' transport costs at 0 (the Newton iterations do not need them).
 template <Geometry G, Density<G> D>
 Evaluation<typename G::Point> evaluate(const G& geometry, const D& density,
                                        std::span<const typename G::Point> sites,
                                        const Eigen::VectorXd& weights, bool with_hessian,
-                                       Timings* timings = nullptr);
+                                       Timings* timings = nullptr, bool with_cost = true);
 
 /// Solves the semi-discrete transport problem from `density` on the geometry's source domain
 /// to the Diracs Σ ν_i δ_{y_i}: finds weights whose cells have masses ν.

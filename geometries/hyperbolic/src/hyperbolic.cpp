@@ -294,7 +294,8 @@ Diagram<Hyperbolic::Point> Hyperbolic::build_diagram(std::span<const Point> site
   return diagram;
 }
 
-CellIntegrals<Hyperbolic::Point> Hyperbolic::integrate(const Cell<Point>& cell, const Point& site) const {
+CellIntegrals<Hyperbolic::Point> Hyperbolic::integrate(const Cell<Point>& cell, const Point& site,
+                                                       bool with_cost) const {
   CellIntegrals<Point> result;
   const Point o = inner_point(cell.vertices);
   const std::size_t n = cell.size();
@@ -312,7 +313,7 @@ CellIntegrals<Hyperbolic::Point> Hyperbolic::integrate(const Cell<Point>& cell, 
       n_ab.z() = -n_ab.z();
       result.first_moment -= (0.5 * l / std::sinh(l)) * n_ab;
     }
-    result.cost += cost_integral(o, a, b, site);
+    if (with_cost) result.cost += cost_integral(o, a, b, site);
   }
   return result;
 }

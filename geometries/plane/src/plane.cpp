@@ -72,7 +72,8 @@ Diagram<Plane::Point> Plane::build_diagram(std::span<const Point> sites, const E
   return diagram;
 }
 
-CellIntegrals<Plane::Point> Plane::integrate(const Cell<Point>& cell, const Point& site) const {
+CellIntegrals<Plane::Point> Plane::integrate(const Cell<Point>& cell, const Point& site, bool) const {
+  // The cost is a by-product of the moments here, so it is always computed.
   // Area, first and second moments about the first vertex o, then shifted to the site.
   const Vec2 o = cell.vertices[0];
   double twice_area = 0, second = 0;

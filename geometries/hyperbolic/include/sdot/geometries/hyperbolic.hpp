@@ -98,7 +98,8 @@ public:
   /// first moment ½ Σ_e L_e m_e (exact); cost ∫ ln(−⟨x, y⟩_M) dA by a collapsed Gauss rule on the
   /// centrally projected fan triangles, with an order chosen from the triangle's size
   /// (relative error ≲ 1e−13, see docs/hyperbolic.md).
-  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site) const;
+  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
+                                               bool with_cost = true) const;
   /// ρ a function: order² points per centrally projected fan triangle,
   /// dA = |det(a, b, c)| / (−⟨X, X⟩_M)^{3/2} ds dt.
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,

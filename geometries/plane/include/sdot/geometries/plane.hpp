@@ -34,7 +34,8 @@ public:
   [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
 
   /// Exact area, first moment and ∫|x − y|²/2 of a polygon.
-  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site) const;
+  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
+                                               bool with_cost = true) const;
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
                                                const ScalarField<Point>& rho, int order) const;
   /// |ab| / |y_i − y_j|.

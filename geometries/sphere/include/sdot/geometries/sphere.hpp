@@ -76,7 +76,8 @@ public:
 
   /// Exact area (Van Oosterom–Strackee), exact first moment (edge formula); the cost
   /// ∫ −ln⟨x, p⟩ dA by quadrature (no closed form), accurate to about 1e-13 relative.
-  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site) const;
+  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
+                                               bool with_cost = true) const;
   /// By quadrature over centrally projected fan triangles (`triangle_rule(order)`).
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
                                                const ScalarField<Point>& rho, int order) const;
