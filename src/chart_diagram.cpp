@@ -18,7 +18,9 @@ extern "C" {
 namespace sdot {
 namespace {
 
-double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
+double cross(const Vec2& a, const Vec2& b) {
+  return a.x() * b.y() - a.y() * b.x();
+}
 
 // Runs Qhull on 3-D points and calls `visit(facet)` for each facet; errors become sdot::Error.
 template <class Visit>
@@ -34,12 +36,14 @@ void run_qhull(std::span<const Vec3> points, Visit&& visit) {
   qhT* qh = &qh_storage;
   qh_zero(qh, errfile);
   char flags[] = "qhull Qt";
-  const int exit_code = qh_new_qhull(qh, 3, static_cast<int>(points.size()), coords.data(), False,
-                                     flags, nullptr, errfile);
+  const int exit_code =
+      qh_new_qhull(qh, 3, static_cast<int>(points.size()), coords.data(), False, flags, nullptr, errfile);
   std::string error;
   if (exit_code == 0) {
     facetT* facet = nullptr;
-    FORALLfacets { visit(qh, facet); }
+    FORALLfacets {
+      visit(qh, facet);
+    }
   }
   qh_freeqhull(qh, !qh_ALL);
   int curlong = 0, totlong = 0;
@@ -49,8 +53,7 @@ void run_qhull(std::span<const Vec3> points, Visit&& visit) {
   std::free(message);
   if (exit_code != 0) {
     const auto end = error.find('\n');
-    throw Error("convex hull failed (Qhull error " + std::to_string(exit_code) +
-                "): " + error.substr(0, end));
+    throw Error("convex hull failed (Qhull error " + std::to_string(exit_code) + "): " + error.substr(0, end));
   }
 }
 
@@ -88,8 +91,7 @@ Adjacency triangles_to_adjacency(const std::vector<std::array<int, 3>>& triangle
 
 }  // namespace
 
-ConvexPolygon::ConvexPolygon(std::vector<Vec2> vertices, const std::string& field)
-    : vertices_(std::move(vertices)) {
+ConvexPolygon::ConvexPolygon(std::vector<Vec2> vertices, const std::string& field) : vertices_(std::move(vertices)) {
   const std::size_t n = vertices_.size();
   if (n < 3) throw InputError(field, "a polygon needs at least 3 vertices, got " + std::to_string(n));
   for (std::size_t i = 0; i < n; ++i)
@@ -101,8 +103,7 @@ ConvexPolygon::ConvexPolygon(std::vector<Vec2> vertices, const std::string& fiel
       throw InputError(indexed(field, (i + 1) % n), "vertex coincides with the previous one");
   if (area() < 0) std::reverse(vertices_.begin(), vertices_.end());
   const double a = area();
-  if (!(a > 1e-14 * std::max(scale * scale, 1e-300)))
-    throw InputError(field, "polygon is degenerate (zero area)");
+  if (!(a > 1e-14 * std::max(scale * scale, 1e-300))) throw InputError(field, "polygon is degenerate (zero area)");
   for (std::size_t i = 0; i < n; ++i) {
     const Vec2& p = vertices_[(i + n - 1) % n];
     const Vec2& q = vertices_[i];
@@ -281,7 +282,7 @@ namespace {
 // (node size)·|v − v₀| — as for a Euclidean kd-tree — in every geometry, even where the power
 // weights vary a lot across the chart (Klein and gnomonic charts).
 class PowerTree {
-public:
+ public:
   PowerTree(std::span<const Vec2> centers, std::span<const double> weights, std::span<const Vec2> anchors)
       : centers_(centers), weights_(weights), anchors_(anchors), order_(centers.size()) {
     std::iota(order_.begin(), order_.end(), 0);
@@ -351,13 +352,13 @@ public:
     }
   }
 
-private:
+ private:
   static constexpr int leaf_size = 8;
   struct Node {
-    Vec2 low = Vec2::Zero(), high = Vec2::Zero();                 // anchor box
-    Vec2 slope_low = Vec2::Zero(), slope_high = Vec2::Zero();     // box of the c_j
-    Vec2 reference = Vec2::Zero();                                // v₀
-    double max_at_reference = 0;                                  // max_j f_j(v₀)
+    Vec2 low = Vec2::Zero(), high = Vec2::Zero();              // anchor box
+    Vec2 slope_low = Vec2::Zero(), slope_high = Vec2::Zero();  // box of the c_j
+    Vec2 reference = Vec2::Zero();                             // v₀
+    double max_at_reference = 0;                               // max_j f_j(v₀)
     int begin = 0, end = 0, left = -1, right = -1;
   };
 
@@ -419,7 +420,7 @@ private:
 }  // namespace
 
 std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weight,
-                                          const ConvexPolygon& domain, std::span<const Vec2> anchors) {
+                                           const ConvexPolygon& domain, std::span<const Vec2> anchors) {
   // Each cell starts as the domain clipped by the sites of the nearest centres; then, while some
   // site j is strictly below the envelope at a vertex v of the cell (pow_j(v) < pow_i(v)), the
   // cell is clipped by it. A kd-tree holding the largest w per node finds such j exactly

@@ -12,14 +12,12 @@ std::string Options::validation_error() const {
   };
   if (!(std::isfinite(tolerance) && tolerance > 0))
     return field("tolerance", "must be a positive number, got " + std::to_string(tolerance));
-  if (max_iterations < 0)
-    return field("max_iterations", "must be >= 0, got " + std::to_string(max_iterations));
+  if (max_iterations < 0) return field("max_iterations", "must be >= 0, got " + std::to_string(max_iterations));
   if (max_step_halvings < 1 || max_step_halvings > 60)
     return field("max_step_halvings", "must be in [1, 60], got " + std::to_string(max_step_halvings));
   if (linear_solver == LinearSolverKind::cholmod && !has_cholmod())
     return field("linear_solver", "CHOLMOD is not available in this build (install libsuitesparse-dev and rebuild)");
-  if (!(std::isfinite(cg_tolerance) && cg_tolerance > 0))
-    return field("cg_tolerance", "must be a positive number");
+  if (!(std::isfinite(cg_tolerance) && cg_tolerance > 0)) return field("cg_tolerance", "must be a positive number");
   if (!(std::isfinite(precision_floor_threshold) && precision_floor_threshold >= 0))
     return field("precision_floor_threshold", "must be a non-negative number");
   if (!(std::isfinite(mass_sum_tolerance) && mass_sum_tolerance >= 0))
@@ -36,11 +34,16 @@ void Options::validate() const {
 
 std::string_view to_string(Status status) {
   switch (status) {
-    case Status::converged: return "converged";
-    case Status::iteration_limit: return "iteration_limit";
-    case Status::line_search_failure: return "line_search_failure";
-    case Status::linear_solve_failure: return "linear_solve_failure";
-    case Status::precision_floor: return "precision_floor";
+    case Status::converged:
+      return "converged";
+    case Status::iteration_limit:
+      return "iteration_limit";
+    case Status::line_search_failure:
+      return "line_search_failure";
+    case Status::linear_solve_failure:
+      return "linear_solve_failure";
+    case Status::precision_floor:
+      return "precision_floor";
   }
   return "unknown";
 }

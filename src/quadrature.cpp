@@ -11,8 +11,7 @@ namespace sdot {
 namespace {
 
 void check_order(int order) {
-  if (order < 1 || order > 64)
-    throw InputError("quadrature_order", "must be in [1, 64], got " + std::to_string(order));
+  if (order < 1 || order > 64) throw InputError("quadrature_order", "must be in [1, 64], got " + std::to_string(order));
 }
 
 std::vector<QuadratureNode1> compute_gauss_legendre(int n) {
@@ -71,8 +70,7 @@ const std::vector<QuadratureNode2>& triangle_rule(int order) {
     nodes.reserve(line.size() * line.size());
     // Duffy map (u, v) ↦ (s, t) = (u(1 − v), uv), Jacobian u.
     for (const auto& a : line)
-      for (const auto& b : line)
-        nodes.push_back({a.x * (1 - b.x), a.x * b.x, a.weight * b.weight * a.x});
+      for (const auto& b : line) nodes.push_back({a.x * (1 - b.x), a.x * b.x, a.weight * b.weight * a.x});
     it = cache.emplace(order, std::move(nodes)).first;
   }
   return it->second;

@@ -13,7 +13,8 @@ std::vector<ChartCell> brute_force(std::span<const Vec3> dual, const ConvexPolyg
   for (std::size_t i = 0; i < dual.size(); ++i) {
     auto& cell = cells[i];
     cell.vertices = domain.vertices();
-    for (std::size_t k = 0; k < cell.vertices.size(); ++k) cell.neighbors.push_back(boundary_label(static_cast<int>(k)));
+    for (std::size_t k = 0; k < cell.vertices.size(); ++k)
+      cell.neighbors.push_back(boundary_label(static_cast<int>(k)));
     for (std::size_t j = 0; j < dual.size(); ++j)
       if (j != i) {
         const Vec3 d = dual[i] - dual[j];

@@ -27,7 +27,8 @@ TEST(Quadrature, TriangleRuleIsExactUpToDegree2nMinus2) {
     for (int a = 0; a + 0 <= 2 * order - 2; ++a)
       for (int b = 0; a + b <= 2 * order - 2; ++b) {
         double integral = 0;
-        for (const auto& node : triangle_rule(order)) integral += node.weight * std::pow(node.s, a) * std::pow(node.t, b);
+        for (const auto& node : triangle_rule(order))
+          integral += node.weight * std::pow(node.s, a) * std::pow(node.t, b);
         EXPECT_NEAR(integral, exact(a, b), 1e-15) << order << " " << a << " " << b;
       }
 }

@@ -10,8 +10,8 @@
 TEST(Readme, PlaneExample) {
   std::vector<sdot::Plane::Point> sites = {{0.2, 0.3}, {0.7, 0.2}, {0.5, 0.8}};
   Eigen::VectorXd masses(3);
-  masses << 0.2, 0.3, 0.5;                                  // sum = area of the unit square
-  const sdot::Plane plane;                                  // source: uniform on [0, 1]²
+  masses << 0.2, 0.3, 0.5;  // sum = area of the unit square
+  const sdot::Plane plane;  // source: uniform on [0, 1]²
   auto result = sdot::solve(plane, sdot::UniformDensity{}, std::span(std::as_const(sites)), masses);
   if (!result.summary.converged()) std::cerr << result.summary.message << "\n";
   // result.weights, result.masses, result.centroids, result.transport_cost, result.diagram.cells

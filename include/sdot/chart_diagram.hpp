@@ -22,7 +22,7 @@ using Vec3 = Eigen::Vector3d;
 
 /// A convex polygon in a 2-D chart, vertices counter-clockwise, validated on construction.
 class ConvexPolygon {
-public:
+ public:
   ConvexPolygon() = default;
   /// Validates and stores `vertices` (either orientation; stored counter-clockwise).
   /// Throws InputError naming `field` (e.g. "domain") when a vertex is not finite, there are
@@ -41,7 +41,7 @@ public:
   /// Largest distance of a vertex from the origin.
   [[nodiscard]] double radius() const;
 
-private:
+ private:
   std::vector<Vec2> vertices_;
 };
 
@@ -76,7 +76,7 @@ std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const Con
 /// |v − c_j|² − w_j ∀j}) over `domain`; the same cells as `build_chart_diagram` with
 /// a_i = (c_i, (w_i − |c_i|²)/2), computed without cancellation when the caller has w directly.
 std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weights,
-                                          const ConvexPolygon& domain, std::span<const Vec2> anchors = {});
+                                           const ConvexPolygon& domain, std::span<const Vec2> anchors = {});
 
 /// Same, with the neighbour candidates already known (e.g. from a 3-D hull).
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,

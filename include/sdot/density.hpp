@@ -26,16 +26,14 @@ using ScalarField = std::function<double(const Point&)>;
 struct UniformDensity {
   /// `with_cost` false skips the transport cost (the solver needs it only at the end).
   template <class G>
-  [[nodiscard]] CellIntegrals<typename G::Point> integrate_cell(const G& geometry,
-                                                               const Cell<typename G::Point>& cell,
-                                                               const typename G::Point& site,
-                                                               bool with_cost = true) const {
+  [[nodiscard]] CellIntegrals<typename G::Point> integrate_cell(const G& geometry, const Cell<typename G::Point>& cell,
+                                                                const typename G::Point& site,
+                                                                bool with_cost = true) const {
     return geometry.integrate(cell, site, with_cost);
   }
   template <class G>
-  [[nodiscard]] double facet_weight(const G& geometry, const typename G::Point& a,
-                                    const typename G::Point& b, const typename G::Point& site_i,
-                                    double weight_i, const typename G::Point& site_j,
+  [[nodiscard]] double facet_weight(const G& geometry, const typename G::Point& a, const typename G::Point& b,
+                                    const typename G::Point& site_i, double weight_i, const typename G::Point& site_j,
                                     double weight_j) const {
     return geometry.facet_weight(a, b, site_i, weight_i, site_j, weight_j);
   }
@@ -57,9 +55,8 @@ struct FunctionDensity {
     return geometry.integrate(cell, site, rho, quadrature_order);
   }
   template <class G>
-  [[nodiscard]] double facet_weight(const G& geometry, const Point& a, const Point& b,
-                                    const Point& site_i, double weight_i, const Point& site_j,
-                                    double weight_j) const {
+  [[nodiscard]] double facet_weight(const G& geometry, const Point& a, const Point& b, const Point& site_i,
+                                    double weight_i, const Point& site_j, double weight_j) const {
     return geometry.facet_weight(a, b, site_i, weight_i, site_j, weight_j, rho, quadrature_order);
   }
 };

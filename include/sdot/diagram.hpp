@@ -9,8 +9,12 @@ namespace sdot {
 
 /// Label of an edge that lies on the boundary of the source domain (any negative label).
 /// `boundary_label(k)` marks domain edge k; `is_boundary(label)` tests it.
-constexpr int boundary_label(int domain_edge) { return -1 - domain_edge; }
-constexpr bool is_boundary(int label) { return label < 0; }
+constexpr int boundary_label(int domain_edge) {
+  return -1 - domain_edge;
+}
+constexpr bool is_boundary(int label) {
+  return label < 0;
+}
 
 /// One Laguerre cell W_i restricted to the source domain: a convex polygon with vertices in
 /// counter-clockwise order. Edge k runs from `vertices[k]` to `vertices[(k+1) % size]`;

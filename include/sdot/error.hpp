@@ -10,22 +10,21 @@ namespace sdot {
 
 /// Base of every exception sdot throws.
 class Error : public std::runtime_error {
-public:
+ public:
   using std::runtime_error::runtime_error;
 };
 
 /// Invalid input. The message names the offending field (and index when there is one),
 /// e.g. `sites[3]: duplicate of sites[1]` or `domain: polygon is not convex at vertex 2`.
 class InputError : public Error {
-public:
+ public:
   /// \param field  what is wrong, as a path into the input (`sites[3]`, `options.tolerance`).
   /// \param problem  what is wrong with it.
-  InputError(const std::string& field, const std::string& problem)
-      : Error(field + ": " + problem), field_(field) {}
+  InputError(const std::string& field, const std::string& problem) : Error(field + ": " + problem), field_(field) {}
   /// The field (with index) that is wrong.
   [[nodiscard]] const std::string& field() const noexcept { return field_; }
 
-private:
+ private:
   std::string field_;
 };
 

@@ -33,21 +33,20 @@ namespace sdot {
 /// - `facet_weight(a, b, y_i, w_i, y_j, w_j, rho, order)`: ∫ ρ / |∇_x(c_i − c_j)| ds;
 /// - `centroid(integrals)`: the (intrinsic) centroid of a cell from its integrals.
 template <class G>
-concept Geometry =
-    requires(const G& geometry, const typename G::Point& point, std::span<const typename G::Point> sites,
-             const Eigen::VectorXd& weights, const Cell<typename G::Point>& cell,
-             const ScalarField<typename G::Point>& rho, int order, double weight,
-             const CellIntegrals<typename G::Point>& integrals) {
-      { G::name() } -> std::convertible_to<std::string_view>;
-      { geometry.cost(point, point) } -> std::convertible_to<double>;
-      geometry.validate_sites(sites);
-      { geometry.default_weights(sites) } -> std::convertible_to<Eigen::VectorXd>;
-      { geometry.build_diagram(sites, weights) } -> std::same_as<Diagram<typename G::Point>>;
-      { geometry.integrate(cell, point, true) } -> std::same_as<CellIntegrals<typename G::Point>>;
-      { geometry.integrate(cell, point, rho, order) } -> std::same_as<CellIntegrals<typename G::Point>>;
-      { geometry.facet_weight(point, point, point, weight, point, weight) } -> std::convertible_to<double>;
-      { geometry.facet_weight(point, point, point, weight, point, weight, rho, order) } -> std::convertible_to<double>;
-      { geometry.centroid(integrals) } -> std::convertible_to<typename G::Point>;
-    };
+concept Geometry = requires(const G& geometry, const typename G::Point& point, std::span<const typename G::Point> sites,
+                            const Eigen::VectorXd& weights, const Cell<typename G::Point>& cell,
+                            const ScalarField<typename G::Point>& rho, int order, double weight,
+                            const CellIntegrals<typename G::Point>& integrals) {
+  { G::name() } -> std::convertible_to<std::string_view>;
+  { geometry.cost(point, point) } -> std::convertible_to<double>;
+  geometry.validate_sites(sites);
+  { geometry.default_weights(sites) } -> std::convertible_to<Eigen::VectorXd>;
+  { geometry.build_diagram(sites, weights) } -> std::same_as<Diagram<typename G::Point>>;
+  { geometry.integrate(cell, point, true) } -> std::same_as<CellIntegrals<typename G::Point>>;
+  { geometry.integrate(cell, point, rho, order) } -> std::same_as<CellIntegrals<typename G::Point>>;
+  { geometry.facet_weight(point, point, point, weight, point, weight) } -> std::convertible_to<double>;
+  { geometry.facet_weight(point, point, point, weight, point, weight, rho, order) } -> std::convertible_to<double>;
+  { geometry.centroid(integrals) } -> std::convertible_to<typename G::Point>;
+};
 
 }  // namespace sdot

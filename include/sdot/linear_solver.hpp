@@ -21,7 +21,7 @@ template <class S>
 concept LinearSolver = requires(S solver, const SparseMatrix& matrix, const Eigen::VectorXd& rhs) {
   solver.compute(matrix);
   { solver.info() } -> std::same_as<Eigen::ComputationInfo>;
-  { solver.solve(rhs) };
+  {solver.solve(rhs)};
 };
 
 /// A solver that can split symbolic and numeric factorisation; the Newton driver then reuses

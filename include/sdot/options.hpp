@@ -13,11 +13,11 @@ namespace sdot {
 
 /// What the solver reports after each Newton iteration (and once for the start).
 struct IterationRecord {
-  int iteration = 0;                  ///< 0 for the start
-  double max_relative_error = 0;      ///< max_i |μ(W_i) − ν_i| / ν_i
-  double rms_relative_error = 0;      ///< sqrt(mean_i ((μ(W_i) − ν_i) / ν_i)²)
-  double step = 0;                    ///< accepted step length 2^−ℓ (0 at the start)
-  double elapsed_s = 0;               ///< wall time since the solver started
+  int iteration = 0;              ///< 0 for the start
+  double max_relative_error = 0;  ///< max_i |μ(W_i) − ν_i| / ν_i
+  double rms_relative_error = 0;  ///< sqrt(mean_i ((μ(W_i) − ν_i) / ν_i)²)
+  double step = 0;                ///< accepted step length 2^−ℓ (0 at the start)
+  double elapsed_s = 0;           ///< wall time since the solver started
 };
 
 struct Options {
@@ -49,12 +49,12 @@ struct Options {
 };
 
 enum class Status {
-  converged,            ///< the tolerance was reached
-  iteration_limit,      ///< max_iterations were used up
-  line_search_failure,  ///< no step length satisfied the KMT conditions (precision floor)
-  linear_solve_failure, ///< the Newton system could not be solved
-  precision_floor,      ///< stopped at the arithmetic's precision floor, above `tolerance` but
-                        ///< below `precision_floor_threshold`: as accurate as this problem allows
+  converged,             ///< the tolerance was reached
+  iteration_limit,       ///< max_iterations were used up
+  line_search_failure,   ///< no step length satisfied the KMT conditions (precision floor)
+  linear_solve_failure,  ///< the Newton system could not be solved
+  precision_floor,       ///< stopped at the arithmetic's precision floor, above `tolerance` but
+                         ///< below `precision_floor_threshold`: as accurate as this problem allows
 };
 
 std::string_view to_string(Status status);

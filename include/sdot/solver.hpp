@@ -27,12 +27,12 @@ namespace sdot {
 /// The solution of a semi-discrete transport problem.
 template <class Point>
 struct Result {
-  Eigen::VectorXd weights;         ///< w_i (mean zero); cells argmin_i c(x, y_i) − w_i
-  Eigen::VectorXd masses;          ///< μ(W_i) at `weights`
-  Eigen::VectorXd target_masses;   ///< ν_i after rescaling (see Summary::mass_scale)
-  std::vector<Point> centroids;    ///< centroid of each cell (the site itself for an empty cell)
-  double transport_cost = 0;       ///< Σ_i ∫_{W_i} c(x, y_i) dμ
-  Diagram<Point> diagram;          ///< the cells at `weights`
+  Eigen::VectorXd weights;        ///< w_i (mean zero); cells argmin_i c(x, y_i) − w_i
+  Eigen::VectorXd masses;         ///< μ(W_i) at `weights`
+  Eigen::VectorXd target_masses;  ///< ν_i after rescaling (see Summary::mass_scale)
+  std::vector<Point> centroids;   ///< centroid of each cell (the site itself for an empty cell)
+  double transport_cost = 0;      ///< Σ_i ∫_{W_i} c(x, y_i) dμ
+  Diagram<Point> diagram;         ///< the cells at `weights`
   Summary summary;
 
   /// Neighbour lists of the cells.
@@ -52,25 +52,22 @@ struct Evaluation {
 /// Builds the diagram and integrates every cell and (optionally) every facet; `with_cost` false
 /// leaves the cells' transport costs at 0 (the Newton iterations do not need them).
 template <Geometry G, Density<G> D>
-Evaluation<typename G::Point> evaluate(const G& geometry, const D& density,
-                                       std::span<const typename G::Point> sites,
-                                       const Eigen::VectorXd& weights, bool with_hessian,
-                                       Timings* timings = nullptr, bool with_cost = true);
+Evaluation<typename G::Point> evaluate(const G& geometry, const D& density, std::span<const typename G::Point> sites,
+                                       const Eigen::VectorXd& weights, bool with_hessian, Timings* timings = nullptr,
+                                       bool with_cost = true);
 
 /// Solves the semi-discrete transport problem from `density` on the geometry's source domain
 /// to the Diracs Σ ν_i δ_{y_i}: finds weights whose cells have masses ν.
 /// Throws InputError for invalid input (NaN, duplicate sites, non-positive masses, bad options,
 /// initial weights that leave a cell empty). Non-convergence is reported in Result::summary.
 template <Geometry G, Density<G> D>
-Result<typename G::Point> solve(const G& geometry, const D& density,
-                                std::span<const typename G::Point> sites,
+Result<typename G::Point> solve(const G& geometry, const D& density, std::span<const typename G::Point> sites,
                                 const Eigen::VectorXd& target_masses, const Options& options = {},
                                 std::optional<Eigen::VectorXd> initial_weights = std::nullopt);
 
 /// Same, with a linear solver type of your choice (any model of LinearSolver).
 template <LinearSolver S, Geometry G, Density<G> D>
-Result<typename G::Point> solve_with(const G& geometry, const D& density,
-                                     std::span<const typename G::Point> sites,
+Result<typename G::Point> solve_with(const G& geometry, const D& density, std::span<const typename G::Point> sites,
                                      const Eigen::VectorXd& target_masses, const Options& options = {},
                                      std::optional<Eigen::VectorXd> initial_weights = std::nullopt);
 

@@ -1,9 +1,9 @@
 #include "common.hpp"
 
+#include <sys/resource.h>
 #include <algorithm>
 #include <cmath>
 #include <set>
-#include <sys/resource.h>
 
 namespace sdot::cli {
 
@@ -37,7 +37,8 @@ std::vector<Eigen::VectorXd> read_points(const json& value, const std::string& f
 Eigen::VectorXd read_vector(const json& value, const std::string& field) {
   if (!value.is_array()) throw InputError(field, "must be an array of numbers");
   Eigen::VectorXd v(static_cast<Eigen::Index>(value.size()));
-  for (std::size_t i = 0; i < value.size(); ++i) v[static_cast<Eigen::Index>(i)] = read_number(value[i], indexed(field, i));
+  for (std::size_t i = 0; i < value.size(); ++i)
+    v[static_cast<Eigen::Index>(i)] = read_number(value[i], indexed(field, i));
   return v;
 }
 

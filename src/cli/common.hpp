@@ -1,18 +1,18 @@
 #pragma once
 // Shared pieces of the sdot command: reading problem fields, writing results, progress, SVG.
 
+#include <fmt/format.h>
 #include <Eigen/Core>
 #include <cstdio>
-#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "registry.hpp"
 #include "sdot/error.hpp"
 #include "sdot/options.hpp"
-#include "registry.hpp"
 #include "sdot/solver.hpp"
 
 namespace sdot::cli {
@@ -99,7 +99,7 @@ json bench_json(const std::string& geometry, std::size_t n, const Result<Point>&
 
 /// A simple SVG canvas with a world-to-pixel map (y up in the world, down in the picture).
 class Svg {
-public:
+ public:
   Svg(double x0, double y0, double x1, double y1, double width_px = 800);
   void polygon(const std::vector<Eigen::Vector2d>& points, const std::string& style);
   void polyline(const std::vector<Eigen::Vector2d>& points, const std::string& style);
@@ -109,7 +109,7 @@ public:
   [[nodiscard]] std::string str() const;
   [[nodiscard]] double height_px() const { return height_; }
 
-private:
+ private:
   [[nodiscard]] std::string xy(const Eigen::Vector2d& p) const;
   double x0_, y1_, scale_, width_, height_;
   std::ostringstream body_;

@@ -63,12 +63,18 @@ int run_solve(const sdot::cli::Registry& registry, int argc, char** argv) {
   sdot::cli::RunContext context;
   for (int i = 2; i < argc; ++i) {
     const std::string arg = argv[i];
-    if (arg == "-o" || arg == "--output") result_path = next_argument(i, argc, argv);
-    else if (arg == "--svg") svg_path = next_argument(i, argc, argv);
-    else if (arg == "--quiet" || arg == "-q") context.quiet = true;
-    else if (!arg.empty() && arg[0] == '-') throw UsageError("unknown option " + arg);
-    else if (problem_path.empty()) problem_path = arg;
-    else throw UsageError("more than one problem file");
+    if (arg == "-o" || arg == "--output")
+      result_path = next_argument(i, argc, argv);
+    else if (arg == "--svg")
+      svg_path = next_argument(i, argc, argv);
+    else if (arg == "--quiet" || arg == "-q")
+      context.quiet = true;
+    else if (!arg.empty() && arg[0] == '-')
+      throw UsageError("unknown option " + arg);
+    else if (problem_path.empty())
+      problem_path = arg;
+    else
+      throw UsageError("more than one problem file");
   }
   if (problem_path.empty()) throw UsageError("solve needs a PROBLEM.json");
   const json problem = read_problem(problem_path);
@@ -78,14 +84,14 @@ int run_solve(const sdot::cli::Registry& registry, int argc, char** argv) {
   context.want_svg = !svg_path.empty();
   const auto output = commands.solve(problem, context);
   const std::string text = output.result.dump(1) + "\n";
-  if (result_path.empty()) std::cout << text;
-  else write_file(result_path, text);
+  if (result_path.empty())
+    std::cout << text;
+  else
+    write_file(result_path, text);
   if (!svg_path.empty()) write_file(svg_path, output.svg);
-  if (!context.quiet)
-    std::fprintf(stderr, "%s\n", output.result["message"].get<std::string>().c_str());
+  if (!context.quiet) std::fprintf(stderr, "%s\n", output.result["message"].get<std::string>().c_str());
   return output.converged ? 0 : 3;
 }
-
 
 int run_bench(const sdot::cli::Registry& registry, int argc, char** argv) {
   sdot::cli::BenchRequest request;
@@ -104,19 +110,24 @@ int run_bench(const sdot::cli::Registry& registry, int argc, char** argv) {
       if (used != value.size() || !std::isfinite(x)) throw UsageError(arg + " needs a number, got '" + value + "'");
       return x;
     };
-    if (arg == "--geometry") geometry = next_argument(i, argc, argv);
+    if (arg == "--geometry")
+      geometry = next_argument(i, argc, argv);
     else if (arg == "--n") {
       const double n = number(next_argument(i, argc, argv));
       if (n < 1 || n != std::floor(n)) throw UsageError("--n must be a positive integer");
       request.n = static_cast<std::size_t>(n);
       have_n = true;
-    } else if (arg == "--seed") request.seed = static_cast<unsigned>(number(next_argument(i, argc, argv)));
+    } else if (arg == "--seed")
+      request.seed = static_cast<unsigned>(number(next_argument(i, argc, argv)));
     else if (arg == "--tolerance") {
       request.tolerance = number(next_argument(i, argc, argv));
       if (!(request.tolerance > 0)) throw UsageError("--tolerance must be positive");
-    } else if (arg == "--linear-solver") request.linear_solver = next_argument(i, argc, argv);
-    else if (arg == "--quiet" || arg == "-q") request.quiet = true;
-    else throw UsageError("unknown option " + arg);
+    } else if (arg == "--linear-solver")
+      request.linear_solver = next_argument(i, argc, argv);
+    else if (arg == "--quiet" || arg == "-q")
+      request.quiet = true;
+    else
+      throw UsageError("unknown option " + arg);
   }
   if (geometry.empty() || !have_n) throw UsageError("bench needs --geometry NAME and --n N");
   const auto& commands = find_geometry(registry, json(geometry));
@@ -130,9 +141,12 @@ int run_demo(const sdot::cli::Registry& registry, int argc, char** argv) {
   sdot::cli::RunContext context;
   for (int i = 2; i < argc; ++i) {
     const std::string arg = argv[i];
-    if (arg == "--out") out_dir = next_argument(i, argc, argv);
-    else if (arg == "--quiet" || arg == "-q") context.quiet = true;
-    else throw UsageError("unknown option " + arg);
+    if (arg == "--out")
+      out_dir = next_argument(i, argc, argv);
+    else if (arg == "--quiet" || arg == "-q")
+      context.quiet = true;
+    else
+      throw UsageError("unknown option " + arg);
   }
   context.want_svg = true;
   int status = 0;

@@ -39,7 +39,7 @@ struct GeometryCommands {
 };
 
 class Registry {
-public:
+ public:
   void add(const std::string& name, GeometryCommands commands) { commands_[name] = std::move(commands); }
   [[nodiscard]] const GeometryCommands* find(const std::string& name) const {
     auto it = commands_.find(name);
@@ -51,7 +51,7 @@ public:
     return result;
   }
 
-private:
+ private:
   std::map<std::string, GeometryCommands> commands_;
 };
 

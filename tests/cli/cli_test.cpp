@@ -1,6 +1,7 @@
 // The sdot command end to end: problem files in, results and pictures out, clear errors.
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
 #include <array>
 #include <cstdio>
 #include <filesystem>
@@ -8,7 +9,6 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
-#include <sys/wait.h>
 
 namespace {
 
@@ -20,10 +20,22 @@ struct Run {
   std::string out, err;
 };
 
+// A per-process scratch directory, removed when the test process exits.
+struct ScratchDirectory {
+  fs::path path;
+  ~ScratchDirectory() {
+    std::error_code ignored;
+    fs::remove_all(path, ignored);
+  }
+};
+
 fs::path scratch() {
-  const fs::path dir = fs::temp_directory_path() / ("sdot_cli_test_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  return dir;
+  static const ScratchDirectory dir{[] {
+    const fs::path d = fs::temp_directory_path() / ("sdot_cli_test_" + std::to_string(::getpid()));
+    fs::create_directories(d);
+    return d;
+  }()};
+  return dir.path;
 }
 
 std::string slurp(const fs::path& path) {
@@ -35,8 +47,8 @@ std::string slurp(const fs::path& path) {
 
 Run run(const std::string& arguments) {
   const fs::path dir = scratch();
-  const std::string command = std::string(SDOT_COMMAND) + " " + arguments + " > " + (dir / "stdout").string() +
-                              " 2> " + (dir / "stderr").string();
+  const std::string command = std::string(SDOT_COMMAND) + " " + arguments + " > " + (dir / "stdout").string() + " 2> " +
+                              (dir / "stderr").string();
   const int status = std::system(command.c_str());
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "stdout"), slurp(dir / "stderr")};
 }
@@ -120,19 +132,32 @@ INSTANTIATE_TEST_SUITE_P(
     Cases, CliBadInput,
     ::testing::Values(
         BadInput{"malformed", R"({"geometry": "plane", "sites": [[0,0],)", "malformed JSON"},
-        BadInput{"unknown_geometry", R"({"geometry": "torus", "sites": [[0,0]]})", "geometry: unknown geometry 'torus'"},
+        BadInput{"unknown_geometry", R"({"geometry": "torus", "sites": [[0,0]]})",
+                 "geometry: unknown geometry 'torus'"},
         BadInput{"missing_geometry", R"({"sites": [[0,0]]})", "geometry: missing"},
-        BadInput{"nan_site", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,"x"]]})", "sites[1]: coordinate 1 is not a number"},
-        BadInput{"short_site", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5]]})", "sites[1]: must be an array of 2 numbers"},
-        BadInput{"duplicate", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5],[0.1,0.1]]})", "sites[2]: duplicate of sites[0]"},
-        BadInput{"zero_mass", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]], "masses": [1, 0]})", "masses[1]: must be positive"},
-        BadInput{"negative_mass", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]], "masses": [-1, 1]})", "masses[0]: must be positive"},
-        BadInput{"mass_count", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]], "masses": [1]})", "masses: there are 1 masses for 2 sites"},
-        BadInput{"degenerate_domain", R"({"geometry": "plane", "sites": [[0.1,0.1]], "domain": [[0,0],[1,1],[2,2]]})", "domain: polygon is degenerate"},
-        BadInput{"nonconvex_domain", R"({"geometry": "plane", "sites": [[0.1,0.1]], "domain": [[0,0],[2,0],[1,0.3],[1,2]]})", "domain[2]: polygon is not convex"},
-        BadInput{"bad_tolerance", R"({"geometry": "plane", "sites": [[0.1,0.1]], "tolerance": -1})", "tolerance: must be a positive number"},
-        BadInput{"unknown_field", R"({"geometry": "plane", "sites": [[0.1,0.1]], "tolerence": 1e-9})", "tolerence: unknown field"},
-        BadInput{"unknown_density", R"({"geometry": "plane", "sites": [[0.1,0.1]], "density": {"type": "image"}})", "density.type: unknown density type"},
+        BadInput{"nan_site", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,"x"]]})",
+                 "sites[1]: coordinate 1 is not a number"},
+        BadInput{"short_site", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5]]})",
+                 "sites[1]: must be an array of 2 numbers"},
+        BadInput{"duplicate", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5],[0.1,0.1]]})",
+                 "sites[2]: duplicate of sites[0]"},
+        BadInput{"zero_mass", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]], "masses": [1, 0]})",
+                 "masses[1]: must be positive"},
+        BadInput{"negative_mass", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]], "masses": [-1, 1]})",
+                 "masses[0]: must be positive"},
+        BadInput{"mass_count", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]], "masses": [1]})",
+                 "masses: there are 1 masses for 2 sites"},
+        BadInput{"degenerate_domain", R"({"geometry": "plane", "sites": [[0.1,0.1]], "domain": [[0,0],[1,1],[2,2]]})",
+                 "domain: polygon is degenerate"},
+        BadInput{"nonconvex_domain",
+                 R"({"geometry": "plane", "sites": [[0.1,0.1]], "domain": [[0,0],[2,0],[1,0.3],[1,2]]})",
+                 "domain[2]: polygon is not convex"},
+        BadInput{"bad_tolerance", R"({"geometry": "plane", "sites": [[0.1,0.1]], "tolerance": -1})",
+                 "tolerance: must be a positive number"},
+        BadInput{"unknown_field", R"({"geometry": "plane", "sites": [[0.1,0.1]], "tolerence": 1e-9})",
+                 "tolerence: unknown field"},
+        BadInput{"unknown_density", R"({"geometry": "plane", "sites": [[0.1,0.1]], "density": {"type": "image"}})",
+                 "density.type: unknown density type"},
         BadInput{"empty_sites", R"({"geometry": "plane", "sites": []})", "sites: at least one site is needed"},
         BadInput{"not_object", R"([1, 2, 3])", "the problem must be a JSON object"}),
     [](const ::testing::TestParamInfo<BadInput>& param_info) { return std::string(param_info.param.name); });

@@ -85,7 +85,7 @@ Eigen::VectorXd solved_weights(const G& geometry, const D& density, std::span<co
 
 template <class G>
 class GeometryConformance : public ::testing::Test {
-protected:
+ protected:
   using Traits = ConformanceTraits<G>;
   using Point = typename G::Point;
   std::mt19937_64 random{12345};
@@ -123,8 +123,8 @@ TYPED_TEST_P(GeometryConformance, GradientIsMassMinusTarget) {
   using T = typename TestFixture::Traits;
   const auto geometry = T::geometry();
   const auto sites = T::random_sites(40, this->random);
-  const Eigen::VectorXd weights = solved_weights(geometry, UniformDensity{}, std::span(sites),
-                                                 this->varying_masses(40, 5));
+  const Eigen::VectorXd weights =
+      solved_weights(geometry, UniformDensity{}, std::span(sites), this->varying_masses(40, 5));
   auto envelope = [&](const Eigen::VectorXd& w) {
     const auto e = evaluate(geometry, UniformDensity{}, std::span(sites), w, false);
     double value = 0;

@@ -27,18 +27,26 @@ Options tight(double tolerance = 1e-13) {
   return options;
 }
 
-Eigen::VectorXd centred(const Eigen::VectorXd& v) { return (v.array() - v.mean()).matrix(); }
+Eigen::VectorXd centred(const Eigen::VectorXd& v) {
+  return (v.array() - v.mean()).matrix();
+}
 
-double rate(double coarse, double fine) { return std::log2(coarse / fine); }
+double rate(double coarse, double fine) {
+  return std::log2(coarse / fine);
+}
 
 // ---- 1. small-region limit -------------------------------------------------------------
 
-Vec3 gnomonic(const Vec2& v) { return Vec3(v.x(), v.y(), 1).normalized(); }
-Vec3 klein(const Vec2& k) { return Vec3(k.x(), k.y(), 1) / std::sqrt(1 - k.squaredNorm()); }
+Vec3 gnomonic(const Vec2& v) {
+  return Vec3(v.x(), v.y(), 1).normalized();
+}
+Vec3 klein(const Vec2& k) {
+  return Vec3(k.x(), k.y(), 1) / std::sqrt(1 - k.squaredNorm());
+}
 
 struct SmallRegionProblem {
-  std::vector<Vec2> sites;        // z_i in Ω = [−1, 1]²
-  std::vector<Vec2> domain;       // Ω's corners
+  std::vector<Vec2> sites;   // z_i in Ω = [−1, 1]²
+  std::vector<Vec2> domain;  // Ω's corners
   Eigen::VectorXd masses;
 };
 
@@ -54,7 +62,9 @@ SmallRegionProblem small_region_problem() {
 }
 
 // f on Ω for the non-uniform case; the curved problems use ρ(x) = f(chart(x) / ε).
-double smooth_profile(const Vec2& z) { return 1 + 0.4 * std::cos(1.3 * z.x()) * std::sin(0.9 * z.y() + 0.4); }
+double smooth_profile(const Vec2& z) {
+  return 1 + 0.4 * std::cos(1.3 * z.x()) * std::sin(0.9 * z.y() + 0.4);
+}
 
 struct LimitRow {
   double epsilon, sphere_error, hyperbolic_error, average_error;
@@ -71,8 +81,10 @@ std::vector<LimitRow> small_region_limit(bool uniform) {
   std::vector<LimitRow> rows;
   for (double epsilon : {0.4, 0.2, 0.1, 0.05, 0.025}) {
     std::vector<Vec3> sphere_sites, sphere_domain, hyperbolic_sites, hyperbolic_domain;
-    for (const auto& z : p.sites) sphere_sites.push_back(gnomonic(epsilon * z)), hyperbolic_sites.push_back(klein(epsilon * z));
-    for (const auto& z : p.domain) sphere_domain.push_back(gnomonic(epsilon * z)), hyperbolic_domain.push_back(klein(epsilon * z));
+    for (const auto& z : p.sites)
+      sphere_sites.push_back(gnomonic(epsilon * z)), hyperbolic_sites.push_back(klein(epsilon * z));
+    for (const auto& z : p.domain)
+      sphere_domain.push_back(gnomonic(epsilon * z)), hyperbolic_domain.push_back(klein(epsilon * z));
     const Sphere sphere = Sphere::polygon(sphere_domain);
     const Hyperbolic hyperbolic(hyperbolic_domain);
     Eigen::VectorXd h_sphere, h_hyperbolic;
@@ -88,14 +100,16 @@ std::vector<LimitRow> small_region_limit(bool uniform) {
       const FunctionDensity<Vec3> hyperbolic_density{
           [epsilon](const Vec3& x) { return smooth_profile(x.head<2>() / x.z() / epsilon); }, 12};
       const auto s = solve(sphere, sphere_density, std::span(std::as_const(sphere_sites)), p.masses, tight(1e-12));
-      const auto h = solve(hyperbolic, hyperbolic_density, std::span(std::as_const(hyperbolic_sites)), p.masses, tight(1e-12));
+      const auto h =
+          solve(hyperbolic, hyperbolic_density, std::span(std::as_const(hyperbolic_sites)), p.masses, tight(1e-12));
       EXPECT_TRUE(s.summary.usable() && s.summary.max_relative_error < 1e-11) << s.summary.message;
       EXPECT_TRUE(h.summary.usable() && h.summary.max_relative_error < 1e-11) << h.summary.message;
       h_sphere = s.weights, h_hyperbolic = h.weights;
     }
     const Eigen::VectorXd scaled_sphere = centred(h_sphere) / (epsilon * epsilon);
     const Eigen::VectorXd scaled_hyperbolic = centred(h_hyperbolic) / (epsilon * epsilon);
-    rows.push_back({epsilon, (scaled_sphere - psi).cwiseAbs().maxCoeff(), (scaled_hyperbolic - psi).cwiseAbs().maxCoeff(),
+    rows.push_back({epsilon, (scaled_sphere - psi).cwiseAbs().maxCoeff(),
+                    (scaled_hyperbolic - psi).cwiseAbs().maxCoeff(),
                     ((scaled_sphere + scaled_hyperbolic) / 2 - psi).cwiseAbs().maxCoeff()});
   }
   return rows;
@@ -131,14 +145,19 @@ void check_small_region_limit(bool uniform) {
   const double sphere_rate = slope([](const LimitRow& r) { return r.sphere_error; });
   const double hyperbolic_rate = slope([](const LimitRow& r) { return r.hyperbolic_error; });
   const double average_rate = slope([](const LimitRow& r) { return r.average_error; });
-  std::printf("  observed rates: sphere %.3f, hyperbolic %.3f, average %.3f\n", sphere_rate, hyperbolic_rate, average_rate);
+  std::printf("  observed rates: sphere %.3f, hyperbolic %.3f, average %.3f\n", sphere_rate, hyperbolic_rate,
+              average_rate);
   EXPECT_NEAR(sphere_rate, 2.0, 0.25);
   EXPECT_NEAR(hyperbolic_rate, 2.0, 0.25);
   EXPECT_NEAR(average_rate, 4.0, 0.5);
 }
 
-TEST(SmallRegionLimit, UniformDensity) { check_small_region_limit(true); }
-TEST(SmallRegionLimit, SmoothNonUniformDensity) { check_small_region_limit(false); }
+TEST(SmallRegionLimit, UniformDensity) {
+  check_small_region_limit(true);
+}
+TEST(SmallRegionLimit, SmoothNonUniformDensity) {
+  check_small_region_limit(false);
+}
 
 // ---- per-geometry problems for tests 2, 3 and 5 ---------------------------------------------
 
@@ -171,7 +190,8 @@ struct HyperbolicCase {
     const auto g = geometry();
     std::vector<Vec2> corners;
     double reach = 0;
-    for (const auto& v : g.domain()) corners.push_back(Hyperbolic::to_klein(v)), reach = std::max(reach, corners.back().norm());
+    for (const auto& v : g.domain())
+      corners.push_back(Hyperbolic::to_klein(v)), reach = std::max(reach, corners.back().norm());
     const ConvexPolygon polygon(corners);
     const double bound = std::pow(1 - reach * reach, -1.5);
     std::uniform_real_distribution<double> uniform(-reach, reach), unit(0, 1);
@@ -179,7 +199,8 @@ struct HyperbolicCase {
     while (points.size() < m) {
       const Vec2 k(uniform(random), uniform(random));
       if (!polygon.contains(k) || k.norm() >= reach) continue;
-      if (unit(random) * bound <= std::pow(1 - k.squaredNorm(), -1.5)) points.push_back(Vec3(k.x(), k.y(), 1) / std::sqrt(1 - k.squaredNorm()));
+      if (unit(random) * bound <= std::pow(1 - k.squaredNorm(), -1.5))
+        points.push_back(Vec3(k.x(), k.y(), 1) / std::sqrt(1 - k.squaredNorm()));
     }
     return points;
   }
@@ -210,7 +231,8 @@ TYPED_TEST(CrossGeometry, DiscreteTransportAgrees) {
     const auto samples = Case::sample(static_cast<std::size_t>(m), sampler);
     Eigen::MatrixXd cost(m, 20);
     for (int s = 0; s < m; ++s)
-      for (int i = 0; i < 20; ++i) cost(s, i) = geometry.cost(samples[static_cast<std::size_t>(s)], sites[static_cast<std::size_t>(i)]);
+      for (int i = 0; i < 20; ++i)
+        cost(s, i) = geometry.cost(samples[static_cast<std::size_t>(s)], sites[static_cast<std::size_t>(i)]);
     const auto discrete = solve_discrete_transport(cost, integer_capacities(masses, m));
     int differ = 0;
     for (int s = 0; s < m; ++s) {
@@ -221,8 +243,8 @@ TYPED_TEST(CrossGeometry, DiscreteTransportAgrees) {
     const double fraction = static_cast<double>(differ) / m;
     const double potential_error = (discrete.potentials - h).cwiseAbs().maxCoeff();
     const double bound = 6 / std::sqrt(static_cast<double>(m));
-    std::printf("  %s %13d | %10.4f %10s | %10.4f %10s | %.4f\n", std::string(std::strlen(Case::name()), ' ').c_str(), m,
-                fraction, "", potential_error, "", bound);
+    std::printf("  %s %13d | %10.4f %10s | %10.4f %10s | %.4f\n", std::string(std::strlen(Case::name()), ' ').c_str(),
+                m, fraction, "", potential_error, "", bound);
     EXPECT_LE(fraction, bound) << "M = " << m;
     EXPECT_LE(potential_error, bound) << "M = " << m;
   }
@@ -273,11 +295,13 @@ TEST(Invariance, PlaneRigidMotion) {
   for (const auto& s : sites) moved_sites.push_back(move(s));
   const Plane unit_square;
   for (const auto& v : unit_square.domain().vertices()) moved_domain.push_back(move(v));
-  const auto moved = solve(Plane(ConvexPolygon(moved_domain)), UniformDensity{}, std::span(std::as_const(moved_sites)), masses, tight(1e-12));
+  const auto moved = solve(Plane(ConvexPolygon(moved_domain)), UniformDensity{}, std::span(std::as_const(moved_sites)),
+                           masses, tight(1e-12));
   ASSERT_TRUE(base.summary.converged() && moved.summary.converged());
   const double weight_change = (centred(base.weights) - centred(moved.weights)).cwiseAbs().maxCoeff();
   double centroid_change = 0;
-  for (int i = 0; i < 300; ++i) centroid_change = std::max(centroid_change, (move(base.centroids[i]) - moved.centroids[i]).norm());
+  for (int i = 0; i < 300; ++i)
+    centroid_change = std::max(centroid_change, (move(base.centroids[i]) - moved.centroids[i]).norm());
   std::printf("  plane rigid motion: max weight change %.2e, max centroid change %.2e, cost %.12f vs %.12f\n",
               weight_change, centroid_change, base.transport_cost, moved.transport_cost);
   EXPECT_LT(weight_change, 1e-10);
@@ -297,7 +321,8 @@ TEST(Invariance, SphereRotation) {
   ASSERT_TRUE(base.summary.converged() && moved.summary.converged());
   const double weight_change = (centred(base.weights) - centred(moved.weights)).cwiseAbs().maxCoeff();
   double centroid_change = 0;
-  for (int i = 0; i < 300; ++i) centroid_change = std::max(centroid_change, (rotation * base.centroids[i] - moved.centroids[i]).norm());
+  for (int i = 0; i < 300; ++i)
+    centroid_change = std::max(centroid_change, (rotation * base.centroids[i] - moved.centroids[i]).norm());
   std::printf("  sphere rotation: max weight change %.2e, max centroid change %.2e\n", weight_change, centroid_change);
   EXPECT_LT(weight_change, 1e-10);
   EXPECT_LT(centroid_change, 1e-10);
@@ -313,11 +338,13 @@ TEST(Invariance, HyperbolicLorentzBoost) {
   std::vector<Vec3> boosted_sites, boosted_domain;
   for (const auto& s : sites) boosted_sites.push_back(boost * s);
   for (const auto& v : domain.domain()) boosted_domain.push_back(boost * v);
-  const auto moved = solve(Hyperbolic(boosted_domain), UniformDensity{}, std::span(std::as_const(boosted_sites)), masses, tight(1e-12));
+  const auto moved = solve(Hyperbolic(boosted_domain), UniformDensity{}, std::span(std::as_const(boosted_sites)),
+                           masses, tight(1e-12));
   ASSERT_TRUE(base.summary.converged() && moved.summary.converged());
   const double weight_change = (centred(base.weights) - centred(moved.weights)).cwiseAbs().maxCoeff();
   double centroid_change = 0;
-  for (int i = 0; i < 300; ++i) centroid_change = std::max(centroid_change, Hyperbolic::distance(boost * base.centroids[i], moved.centroids[i]));
+  for (int i = 0; i < 300; ++i)
+    centroid_change = std::max(centroid_change, Hyperbolic::distance(boost * base.centroids[i], moved.centroids[i]));
   std::printf("  hyperbolic boost (distance 1.5): max weight change %.2e, max centroid distance %.2e\n", weight_change,
               centroid_change);
   EXPECT_LT(weight_change, 1e-9);
@@ -335,21 +362,29 @@ void check_refinement() {
   for (std::size_t n : {250, 1000, 4000, 16000}) {
     std::mt19937_64 random(31 + n);
     const auto sites = Case::sample(n, random);
-    const auto result = solve(geometry, UniformDensity{}, std::span(std::as_const(sites)), equal_masses(n), tight(1e-9));
+    const auto result =
+        solve(geometry, UniformDensity{}, std::span(std::as_const(sites)), equal_masses(n), tight(1e-9));
     ASSERT_TRUE(result.summary.converged()) << result.summary.message;
     counts.push_back(static_cast<double>(n));
     costs.push_back(result.transport_cost);
     const std::size_t k = costs.size() - 1;
-    if (k == 0) std::printf("  %6zu | %14.6e |\n", n, result.transport_cost);
-    else std::printf("  %6zu | %14.6e | %.3f\n", n, result.transport_cost, std::log(costs[k - 1] / costs[k]) / std::log(counts[k] / counts[k - 1]));
+    if (k == 0)
+      std::printf("  %6zu | %14.6e |\n", n, result.transport_cost);
+    else
+      std::printf("  %6zu | %14.6e | %.3f\n", n, result.transport_cost,
+                  std::log(costs[k - 1] / costs[k]) / std::log(counts[k] / counts[k - 1]));
   }
   const double observed = std::log(costs.front() / costs.back()) / std::log(counts.back() / counts.front());
   std::printf("  observed rate (cost ~ N^-rate): %.3f (quantisation theory in 2-D: 1)\n", observed);
   EXPECT_NEAR(observed, 1.0, 0.15);
 }
 
-TEST(Refinement, PlaneTransportCostConverges) { check_refinement<PlaneCase>(); }
-TEST(Refinement, SphereTransportCostConverges) { check_refinement<SphereCase>(); }
+TEST(Refinement, PlaneTransportCostConverges) {
+  check_refinement<PlaneCase>();
+}
+TEST(Refinement, SphereTransportCostConverges) {
+  check_refinement<SphereCase>();
+}
 
 // The discrete checker itself, against brute force on tiny problems.
 TEST(DiscreteTransport, MatchesBruteForce) {

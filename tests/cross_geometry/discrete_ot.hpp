@@ -32,7 +32,8 @@ inline std::vector<int> integer_capacities(const Eigen::VectorXd& masses, int sa
     remainder.emplace_back(exact - std::floor(exact), static_cast<int>(i));
   }
   std::sort(remainder.rbegin(), remainder.rend());
-  for (int k = 0; used < samples; ++k, ++used) ++capacity[static_cast<std::size_t>(remainder[static_cast<std::size_t>(k)].second)];
+  for (int k = 0; used < samples; ++k, ++used)
+    ++capacity[static_cast<std::size_t>(remainder[static_cast<std::size_t>(k)].second)];
   return capacity;
 }
 
@@ -73,20 +74,24 @@ inline DiscreteTransport solve_discrete_transport(const Eigen::MatrixXd& cost, c
     for (int round = 0; round < sites; ++round) {
       int u = -1;
       for (int i = 0; i < sites; ++i)
-        if (!done[static_cast<std::size_t>(i)] && (u < 0 || distance[static_cast<std::size_t>(i)] < distance[static_cast<std::size_t>(u)])) u = i;
+        if (!done[static_cast<std::size_t>(i)] &&
+            (u < 0 || distance[static_cast<std::size_t>(i)] < distance[static_cast<std::size_t>(u)]))
+          u = i;
       done[static_cast<std::size_t>(u)] = 1;
       if (load[static_cast<std::size_t>(u)] < capacity[static_cast<std::size_t>(u)]) {
         target = u;
         break;
       }
       for (int j = 0; j < sites; ++j)
-        if (!done[static_cast<std::size_t>(j)] && distance[static_cast<std::size_t>(u)] + edge(u, j) < distance[static_cast<std::size_t>(j)]) {
+        if (!done[static_cast<std::size_t>(j)] &&
+            distance[static_cast<std::size_t>(u)] + edge(u, j) < distance[static_cast<std::size_t>(j)]) {
           distance[static_cast<std::size_t>(j)] = distance[static_cast<std::size_t>(u)] + edge(u, j);
           previous[static_cast<std::size_t>(j)] = u;
         }
     }
     const double reach = distance[static_cast<std::size_t>(target)];
-    for (int i = 0; i < sites; ++i) psi[static_cast<std::size_t>(i)] += std::min(distance[static_cast<std::size_t>(i)], reach);
+    for (int i = 0; i < sites; ++i)
+      psi[static_cast<std::size_t>(i)] += std::min(distance[static_cast<std::size_t>(i)], reach);
     // Augment: every site on the path passes one sample down the path; s enters at its start.
     int j = target;
     while (previous[static_cast<std::size_t>(j)] >= 0) {

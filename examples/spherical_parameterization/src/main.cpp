@@ -46,10 +46,14 @@ double since(std::chrono::steady_clock::time_point t) {
 }
 
 json metrics_json(const Metrics& m) {
-  return {{"area_mean_abs", m.area_mean_abs},       {"area_std", m.area_std},
-          {"area_max_abs", m.area_max_abs},         {"area_nonfinite", m.area_nonfinite},
-          {"angle_mean_abs_deg", m.angle_mean_abs_deg}, {"angle_p95_deg", m.angle_p95_deg},
-          {"flips", m.flips},                       {"sph_area_sum_over_4pi", m.sph_area_sum_over_4pi}};
+  return {{"area_mean_abs", m.area_mean_abs},
+          {"area_std", m.area_std},
+          {"area_max_abs", m.area_max_abs},
+          {"area_nonfinite", m.area_nonfinite},
+          {"angle_mean_abs_deg", m.angle_mean_abs_deg},
+          {"angle_p95_deg", m.angle_p95_deg},
+          {"flips", m.flips},
+          {"sph_area_sum_over_4pi", m.sph_area_sum_over_4pi}};
 }
 
 std::vector<double> read_factors(const std::string& path, std::size_t count) {
@@ -67,7 +71,8 @@ std::vector<double> read_factors(const std::string& path, std::size_t count) {
     if (end == tok.c_str() || *end != '\0')
       throw FileError(path + ": target weight " + std::to_string(v.size()) + " is not a number: '" + tok + "'");
     if (!(std::isfinite(x) && x > 0))
-      throw FileError(path + ": target weight " + std::to_string(v.size()) + " must be positive and finite, got " + tok);
+      throw FileError(path + ": target weight " + std::to_string(v.size()) + " must be positive and finite, got " +
+                      tok);
     v.push_back(x);
   }
   if (v.size() != count)
@@ -94,22 +99,35 @@ int main(int argc, char** argv) {
     if (a == "-h" || a == "--help") {
       std::cout << usage;
       return 0;
-    } else if (a == "-o" || a == "--output") output = value("a file");
-    else if (a == "--report") report_path = value("a file");
-    else if (a == "--svg") svg_path = value("a file");
-    else if (a == "--target-weights") weights_path = value("a file");
-    else if (a == "--refine") options.refine = std::atoi(value("a number").c_str());
-    else if (a == "--no-optimize") options.optimize = false;
-    else if (a == "--separation-delta") options.separation_delta = std::atof(value("a number").c_str());
-    else if (a == "--separation-threshold") options.min_spacing = std::atof(value("a number").c_str());
-    else if (a == "--ot-tolerance") options.ot_tolerance = std::atof(value("a number").c_str());
-    else if (a == "--sweeps") options.optimizer.max_sweeps = std::atoi(value("a number").c_str());
-    else if (a == "--ply-ascii") ply_ascii = true;
-    else if (a == "--quiet") quiet = true;
+    } else if (a == "-o" || a == "--output")
+      output = value("a file");
+    else if (a == "--report")
+      report_path = value("a file");
+    else if (a == "--svg")
+      svg_path = value("a file");
+    else if (a == "--target-weights")
+      weights_path = value("a file");
+    else if (a == "--refine")
+      options.refine = std::atoi(value("a number").c_str());
+    else if (a == "--no-optimize")
+      options.optimize = false;
+    else if (a == "--separation-delta")
+      options.separation_delta = std::atof(value("a number").c_str());
+    else if (a == "--separation-threshold")
+      options.min_spacing = std::atof(value("a number").c_str());
+    else if (a == "--ot-tolerance")
+      options.ot_tolerance = std::atof(value("a number").c_str());
+    else if (a == "--sweeps")
+      options.optimizer.max_sweeps = std::atoi(value("a number").c_str());
+    else if (a == "--ply-ascii")
+      ply_ascii = true;
+    else if (a == "--quiet")
+      quiet = true;
     else if (!a.empty() && a[0] == '-') {
       std::cerr << "error: unknown option " << a << "\n" << usage;
       return 2;
-    } else if (input.empty()) input = a;
+    } else if (input.empty())
+      input = a;
     else {
       std::cerr << "error: unexpected argument " << a << "\n" << usage;
       return 2;
@@ -164,8 +182,7 @@ int main(int argc, char** argv) {
       write_report();
       return 1;
     }
-    progress("read " + input + " (" + std::to_string(v.vertices) + " vertices, " + std::to_string(v.faces) +
-             " faces)");
+    progress("read " + input + " (" + std::to_string(v.vertices) + " vertices, " + std::to_string(v.faces) + " faces)");
     std::vector<int> kept;
     Mesh mesh = drop_unreferenced(raw, &kept);
     if (!weights_path.empty()) {

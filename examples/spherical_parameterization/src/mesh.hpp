@@ -22,16 +22,16 @@ struct Mesh {
 
 /// A file that cannot be read or written, or is malformed (the message names the file and line).
 class FileError : public std::runtime_error {
-public:
+ public:
   using std::runtime_error::runtime_error;
 };
 
 /// What the reader had to do to get triangles.
 struct ReadInfo {
-  std::size_t polygons = 0;          ///< faces with more than 3 vertices (fan-triangulated)
-  std::size_t polygon_triangles = 0; ///< triangles those polygons became
-  std::size_t short_faces = 0;       ///< faces with fewer than 3 vertices (ignored)
-  std::string format;                ///< "off", "obj", "ply ascii", "ply binary_little_endian"
+  std::size_t polygons = 0;           ///< faces with more than 3 vertices (fan-triangulated)
+  std::size_t polygon_triangles = 0;  ///< triangles those polygons became
+  std::size_t short_faces = 0;        ///< faces with fewer than 3 vertices (ignored)
+  std::string format;                 ///< "off", "obj", "ply ascii", "ply binary_little_endian"
 };
 
 /// Reads OFF, OBJ or PLY by extension (case-insensitive). Polygons are fan-triangulated as
@@ -49,7 +49,7 @@ std::string extension(const std::string& path);
 
 /// One defect found in the input, with its count.
 struct Defect {
-  std::string name;     ///< "boundary edges", "non-manifold vertices", ...
+  std::string name;  ///< "boundary edges", "non-manifold vertices", ...
   std::size_t count = 0;
   bool fatal = true;    ///< false: repaired or accepted (polygons, unreferenced vertices, ...)
   std::string message;  ///< full sentence, names the defect and gives the count

@@ -95,8 +95,7 @@ Validation validate(const Mesh& mesh, const ReadInfo& info) {
   for (const auto& v : mesh.vertices)
     if (!v.allFinite()) ++nan;
   if (nan > 0)
-    add("NaN coordinates", nan, true,
-        plural(nan, "vertex has", "vertices have") + " NaN or infinite coordinates");
+    add("NaN coordinates", nan, true, plural(nan, "vertex has", "vertices have") + " NaN or infinite coordinates");
 
   std::size_t out_of_range = 0, repeated = 0;
   std::vector<char> used(nv, 0);

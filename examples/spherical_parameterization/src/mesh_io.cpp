@@ -27,7 +27,7 @@ std::string read_file(const std::string& path) {
 
 /// Whitespace tokenizer over a buffer that skips '#' comments (OFF).
 class Tokens {
-public:
+ public:
   Tokens(const std::string& text, std::size_t pos, std::string path, bool comments)
       : s_(text), pos_(pos), path_(std::move(path)), comments_(comments) {}
   bool next(std::string_view& token) {
@@ -41,8 +41,7 @@ public:
       break;
     }
     const std::size_t start = pos_;
-    while (pos_ < s_.size() && !std::isspace(static_cast<unsigned char>(s_[pos_])) &&
-           !(comments_ && s_[pos_] == '#'))
+    while (pos_ < s_.size() && !std::isspace(static_cast<unsigned char>(s_[pos_])) && !(comments_ && s_[pos_] == '#'))
       ++pos_;
     token = std::string_view(s_).substr(start, pos_ - start);
     return true;
@@ -70,7 +69,7 @@ public:
   }
   [[nodiscard]] std::size_t position() const { return pos_; }
 
-private:
+ private:
   const std::string& s_;
   std::size_t pos_;
   std::string path_;
@@ -150,8 +149,7 @@ Mesh read_obj(const std::string& path, ReadInfo& info) {
       for (int c = 0; c < 3; ++c) {
         char* end = nullptr;
         v[c] = std::strtod(p, &end);
-        if (end == p)
-          throw FileError(path + ":" + std::to_string(line_number) + ": a vertex needs 3 coordinates");
+        if (end == p) throw FileError(path + ":" + std::to_string(line_number) + ": a vertex needs 3 coordinates");
         p = end;
       }
       mesh.vertices.push_back(v);
@@ -294,7 +292,8 @@ Mesh read_ply(const std::string& path, ReadInfo& info) {
     int xyz[3] = {-1, -1, -1};
     for (std::size_t k = 0; k < e.props.size(); ++k)
       for (int c = 0; c < 3; ++c)
-        if (e.props[k].name == std::string(1, static_cast<char>('x' + c)) && !e.props[k].list) xyz[c] = static_cast<int>(k);
+        if (e.props[k].name == std::string(1, static_cast<char>('x' + c)) && !e.props[k].list)
+          xyz[c] = static_cast<int>(k);
     const bool is_vertex = e.name == "vertex";
     if (is_vertex) {
       if (xyz[0] < 0 || xyz[1] < 0 || xyz[2] < 0) throw FileError(path + ": PLY vertex element lacks x, y or z");
@@ -407,7 +406,8 @@ void write_mesh(const std::string& path, const Mesh& mesh, bool ply_ascii) {
       s += "3 " + std::to_string(f[0]) + " " + std::to_string(f[1]) + " " + std::to_string(f[2]) + "\n";
   } else if (e == "obj") {
     for (const auto& v : mesh.vertices) {
-      s += "v ", append_number(s, v.x()), s += ' ', append_number(s, v.y()), s += ' ', append_number(s, v.z()), s += '\n';
+      s += "v ", append_number(s, v.x()), s += ' ', append_number(s, v.y()), s += ' ', append_number(s, v.z()),
+          s += '\n';
     }
     for (const auto& f : mesh.faces)
       s += "f " + std::to_string(f[0] + 1) + " " + std::to_string(f[1] + 1) + " " + std::to_string(f[2] + 1) + "\n";

@@ -5,16 +5,18 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <numeric>
-#include <array>
 #include <unordered_map>
 
 namespace sphparam {
 namespace {
 
-inline std::size_t u(int i) { return static_cast<std::size_t>(i); }
+inline std::size_t u(int i) {
+  return static_cast<std::size_t>(i);
+}
 
 double cot_angle(const Vec3& p, const Vec3& q, const Vec3& r) {  // cot of the angle at p
   const Vec3 a = q - p, b = r - p;
@@ -263,7 +265,8 @@ std::size_t untangle(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& 
         star(static_cast<int>(i), bad1, w1);
         // monotone: never create flips; around flips, move freely to make room
         // (after a few stuck rounds the ring grows and plain Laplacian smoothing takes over there)
-        if ((ring < 3 || !allow_free) && (bad1 > bad0 || (bad1 == bad0 && bad0 > 0 && w1 < w0 && ring == 0))) s[i] = old;
+        if ((ring < 3 || !allow_free) && (bad1 > bad0 || (bad1 == bad0 && bad0 > 0 && w1 < w0 && ring == 0)))
+          s[i] = old;
       }
   }
   return count_flips(mesh, s);
@@ -392,7 +395,8 @@ OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::
       ++visited;
       const int i = static_cast<int>(iv);
       const Vec3 x = s[u(i)];
-      const LocalEval e0 = local_energy(mesh, topo, targets, geom, s, i, x, options.conformal_weight, true, options.regularization);
+      const LocalEval e0 =
+          local_energy(mesh, topo, targets, geom, s, i, x, options.conformal_weight, true, options.regularization);
       if (!e0.valid) continue;
       const Vec3 t1 = (std::abs(x.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(x).normalized();
       const Vec3 t2 = x.cross(t1);
@@ -407,7 +411,8 @@ OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::
         const Eigen::Matrix2d Hd = H + m * scale * Eigen::Matrix2d::Identity();
         const Eigen::Vector2d d = -Hd.ldlt().solve(grad2);
         const Vec3 y = (x + P * d).normalized();
-        const LocalEval e1 = local_energy(mesh, topo, targets, geom, s, i, y, options.conformal_weight, false, options.regularization);
+        const LocalEval e1 =
+            local_energy(mesh, topo, targets, geom, s, i, y, options.conformal_weight, false, options.regularization);
         if (e1.valid && e1.energy < e0.energy) {
           s[u(i)] = y;
           accepted = true;
@@ -439,7 +444,8 @@ Mesh subdivide(const Mesh& mesh) {
   mid.reserve(mesh.faces.size() * 2);
   auto midpoint = [&](int a, int b) {
     const int lo = std::min(a, b), hi = std::max(a, b);
-    const std::uint64_t k = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(lo)) << 32) | static_cast<std::uint32_t>(hi);
+    const std::uint64_t k =
+        (static_cast<std::uint64_t>(static_cast<std::uint32_t>(lo)) << 32) | static_cast<std::uint32_t>(hi);
     auto it = mid.find(k);
     if (it != mid.end()) return it->second;
     const int idx = static_cast<int>(out.vertices.size());

@@ -1,16 +1,16 @@
 // The parameterization pipeline. The OT stage uses the library's sphere geometry and solver.
 #include "pipeline.hpp"
 
+#include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <optional>
 #include <numeric>
+#include <optional>
 #include <unordered_map>
-#include <Eigen/Geometry>
-#include <array>
 
 #ifdef SPHPARAM_HAVE_SPHERE
 #include <sdot/geometries/sphere.hpp>
@@ -21,15 +21,18 @@ namespace sphparam {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-inline std::size_t u(int i) { return static_cast<std::size_t>(i); }
+double since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+inline std::size_t u(int i) {
+  return static_cast<std::size_t>(i);
+}
 
 std::string fmt_g(double x) {
   char b[32];
   std::snprintf(b, sizeof b, "%.3g", x);
   return b;
 }
-
 
 #ifdef SPHPARAM_HAVE_SPHERE
 struct OtOutcome {
@@ -50,8 +53,8 @@ OtOutcome solve_ot(const std::vector<Vec3>& sites, const std::vector<double>& ma
   if (rec) rec->error_history.clear(), rec->iterations = 0;
   opt.callback = [&](const sdot::IterationRecord& r) {
     if (rec) rec->error_history.push_back(r.max_relative_error);
-    say("  Newton " + std::to_string(r.iteration) + ": max rel. mass error " + fmt_g(r.max_relative_error) +
-        ", step " + fmt_g(r.step) + ", " + fmt_g(r.elapsed_s) + " s");
+    say("  Newton " + std::to_string(r.iteration) + ": max rel. mass error " + fmt_g(r.max_relative_error) + ", step " +
+        fmt_g(r.step) + ", " + fmt_g(r.elapsed_s) + " s");
   };
   try {
     sdot::Sphere sphere;
@@ -69,8 +72,10 @@ OtOutcome solve_ot(const std::vector<Vec3>& sites, const std::vector<double>& ma
       double worst = 0;
       bool ok = true;
       for (Eigen::Index i = 0; i < nu.size(); ++i) {
-        if (!(ev.masses[i] > 0)) ok = false;
-        else worst = std::max(worst, std::abs(std::log(nu[i] / (scale * ev.masses[i]))));
+        if (!(ev.masses[i] > 0))
+          ok = false;
+        else
+          worst = std::max(worst, std::abs(std::log(nu[i] / (scale * ev.masses[i]))));
       }
       const int stages = ok ? std::min(4, static_cast<int>(std::ceil(worst / 2.0))) : 1;
       for (int k = 1; k < stages; ++k) {
@@ -93,14 +98,22 @@ OtOutcome solve_ot(const std::vector<Vec3>& sites, const std::vector<double>& ma
     const auto& sum = result.summary;
     std::string status;
     switch (sum.status) {
-      case sdot::Status::converged: status = "converged"; break;
+      case sdot::Status::converged:
+        status = "converged";
+        break;
       case sdot::Status::line_search_failure:
         // A stall at a small error is the precision floor of clustered sites: a result, not a failure.
         status = sum.max_relative_error < 1e-3 ? "precision_floor" : "line_search_failure";
         break;
-      case sdot::Status::precision_floor: status = "precision_floor"; break;  // the solver's own floor detection
-      case sdot::Status::iteration_limit: status = "iteration_limit"; break;
-      case sdot::Status::linear_solve_failure: status = "linear_solve_failure"; break;
+      case sdot::Status::precision_floor:
+        status = "precision_floor";
+        break;  // the solver's own floor detection
+      case sdot::Status::iteration_limit:
+        status = "iteration_limit";
+        break;
+      case sdot::Status::linear_solve_failure:
+        status = "linear_solve_failure";
+        break;
     }
     out.usable = sum.iterations > 0 || sum.status == sdot::Status::converged;
     if (!out.usable) status = "failed";
@@ -177,7 +190,8 @@ std::string separate_clusters(std::vector<Vec3>& s, const std::vector<double>& m
   std::vector<Vec3> sites(reps.size());
   for (std::size_t r = 0; r < reps.size(); ++r) sites[r] = s[u(reps[r])];
   OtRecord local;
-  OtOutcome o = solve_ot(sites, cmass, 1e-6, 40, [](const std::string&) {}, &local);
+  OtOutcome o = solve_ot(
+      sites, cmass, 1e-6, 40, [](const std::string&) {}, &local);
   if (!o.usable) {
     rec.message = "separation pass failed: " + local.message;
     return "failed: " + local.message;

@@ -23,7 +23,7 @@ struct PipelineOptions {
   double min_spacing = 5e-5;
   /// Separation radius of the representatives, times sqrt(4π/N).
   double separation_delta = 0.1;
-  bool optimize = true;        ///< run the final area-correcting optimization
+  bool optimize = true;  ///< run the final area-correcting optimization
   OptimizeOptions optimizer;
   std::vector<double> vertex_factors;  ///< --target-weights (empty: uniform)
   /// Progress lines (stage starts, Newton iterations); may be empty.

@@ -17,10 +17,14 @@ std::string num(double x) {
 std::string escape(const std::string& s) {
   std::string o;
   for (char c : s) {
-    if (c == '<') o += "&lt;";
-    else if (c == '>') o += "&gt;";
-    else if (c == '&') o += "&amp;";
-    else o += c;
+    if (c == '<')
+      o += "&lt;";
+    else if (c == '>')
+      o += "&gt;";
+    else if (c == '&')
+      o += "&amp;";
+    else
+      o += c;
   }
   return o;
 }
@@ -82,7 +86,8 @@ std::string histogram_svg(const std::vector<double>& initial, const std::vector<
     const double d = range * k / 4;
     s += "<line x1=\"" + num(X(d)) + "\" y1=\"" + num(upper + ph) + "\" x2=\"" + num(X(d)) + "\" y2=\"" +
          num(upper + ph + 5) + "\" stroke=\"black\"/>\n";
-    s += "<text x=\"" + num(X(d)) + "\" y=\"" + num(upper + ph + 18) + "\" text-anchor=\"middle\">" + num(d) + "</text>\n";
+    s += "<text x=\"" + num(X(d)) + "\" y=\"" + num(upper + ph + 18) + "\" text-anchor=\"middle\">" + num(d) +
+         "</text>\n";
   }
   for (int k = 0; k <= 4; ++k) {
     const double f = top * k / 4;

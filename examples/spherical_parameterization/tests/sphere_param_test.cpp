@@ -1,13 +1,13 @@
 // Tests of the spherical parameterization example: I/O, validation, metrics, pipeline.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <numeric>
 #include <sstream>
-#include <unistd.h>
 
 #include "mesh.hpp"
 #include "param.hpp"
@@ -20,13 +20,22 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// A per-process scratch directory, removed when the test process exits.
+struct ScratchDirectory {
+  fs::path path;
+  ~ScratchDirectory() {
+    std::error_code ignored;
+    fs::remove_all(path, ignored);
+  }
+};
+
 fs::path temp_dir() {
-  static const fs::path dir = [] {
+  static const ScratchDirectory dir{[] {
     fs::path d = fs::temp_directory_path() / ("sphparam_test_" + std::to_string(::getpid()));
     fs::create_directories(d);
     return d;
-  }();
-  return dir;
+  }()};
+  return dir.path;
 }
 
 void write_text(const fs::path& p, const std::string& text) {
@@ -353,7 +362,8 @@ TEST(Stages, UntangleRepairsPerturbedMap) {
   // fold a few vertices over their neighbours
   for (int v : {10, 200, 400}) {
     const int nb = topo.nbrs[static_cast<std::size_t>(topo.nbr_offsets[static_cast<std::size_t>(v)])];
-    s[static_cast<std::size_t>(v)] = (2.2 * s[static_cast<std::size_t>(nb)] - 1.2 * s[static_cast<std::size_t>(v)]).normalized();
+    s[static_cast<std::size_t>(v)] =
+        (2.2 * s[static_cast<std::size_t>(nb)] - 1.2 * s[static_cast<std::size_t>(v)]).normalized();
   }
   ASSERT_GT(count_flips(m, s), 0u);
   EXPECT_EQ(untangle(m, topo, s), 0u);
@@ -428,8 +438,9 @@ TEST(Pipeline, TargetWeightsEnlargeRegions) {
     const Vec3 c = m.vertices[static_cast<std::size_t>(t[0])] + m.vertices[static_cast<std::size_t>(t[1])] +
                    m.vertices[static_cast<std::size_t>(t[2])];
     if (c.z() > 0)
-      north += spherical_triangle_area(p.sphere[static_cast<std::size_t>(t[0])], p.sphere[static_cast<std::size_t>(t[1])],
-                                       p.sphere[static_cast<std::size_t>(t[2])]);
+      north +=
+          spherical_triangle_area(p.sphere[static_cast<std::size_t>(t[0])], p.sphere[static_cast<std::size_t>(t[1])],
+                                  p.sphere[static_cast<std::size_t>(t[2])]);
   }
   EXPECT_NEAR(north / (4 * M_PI), 0.75, 0.05);
 }
@@ -450,8 +461,8 @@ TEST(Command, EndToEndWithReportAndSvg) {
   const auto rep = (temp_dir() / "cmd.json").string();
   const auto svg = (temp_dir() / "cmd.svg").string();
   write_mesh(in, test::bumpy_sphere(3, 6, 0.4, 2));
-  const std::string cmd = std::string(SPHPARAM_COMMAND) + " " + in + " -o " + out + " --report " + rep + " --svg " +
-                          svg + " --quiet";
+  const std::string cmd =
+      std::string(SPHPARAM_COMMAND) + " " + in + " -o " + out + " --report " + rep + " --svg " + svg + " --quiet";
   ASSERT_EQ(std::system(cmd.c_str()), 0);
   const Mesh o = read_mesh(out);
   const Mesh i = read_mesh(in);
@@ -471,8 +482,8 @@ TEST(Command, InvalidInputIsRejectedWithMessage) {
   const auto in = (temp_dir() / "open.off").string();
   write_mesh(in, m);
   const auto log = (temp_dir() / "open.log").string();
-  const std::string cmd = std::string(SPHPARAM_COMMAND) + " " + in + " -o " + (temp_dir() / "x.off").string() +
-                          " 2> " + log;
+  const std::string cmd =
+      std::string(SPHPARAM_COMMAND) + " " + in + " -o " + (temp_dir() / "x.off").string() + " 2> " + log;
   EXPECT_NE(std::system(cmd.c_str()), 0);
   std::ifstream l(log);
   std::string text((std::istreambuf_iterator<char>(l)), std::istreambuf_iterator<char>());

@@ -9,12 +9,12 @@ namespace sphparam::test {
 Mesh icosphere(int level) {
   const double t = (1 + std::sqrt(5.0)) / 2;
   Mesh m;
-  m.vertices = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
-                {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+  m.vertices = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
+                {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
   for (auto& v : m.vertices) v.normalize();
-  m.faces = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-             {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
-             {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+  m.faces = {{0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+             {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+             {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
   for (int l = 0; l < level; ++l) {
     std::map<std::pair<int, int>, int> mid;
     auto get = [&](int a, int b) {
@@ -22,7 +22,8 @@ Mesh icosphere(int level) {
       auto it = mid.find(k);
       if (it != mid.end()) return it->second;
       const int i = static_cast<int>(m.vertices.size());
-      m.vertices.push_back((m.vertices[static_cast<std::size_t>(a)] + m.vertices[static_cast<std::size_t>(b)]).normalized());
+      m.vertices.push_back(
+          (m.vertices[static_cast<std::size_t>(a)] + m.vertices[static_cast<std::size_t>(b)]).normalized());
       mid[k] = i;
       return i;
     };
@@ -69,10 +70,12 @@ Mesh bumpy_sphere(int level, int bumps, double amplitude, unsigned seed) {
   std::uniform_real_distribution<double> uni(-1, 1);
   std::vector<Vec3> c;
   std::vector<double> a;
-  for (int k = 0; k < bumps; ++k) c.push_back(Vec3(n(rng), n(rng), n(rng)).normalized()), a.push_back(amplitude * uni(rng));
+  for (int k = 0; k < bumps; ++k)
+    c.push_back(Vec3(n(rng), n(rng), n(rng)).normalized()), a.push_back(amplitude * uni(rng));
   for (auto& v : m.vertices) {
     double r = 1;
-    for (int k = 0; k < bumps; ++k) r += a[static_cast<std::size_t>(k)] * std::exp(-(v - c[static_cast<std::size_t>(k)]).squaredNorm() / 0.15);
+    for (int k = 0; k < bumps; ++k)
+      r += a[static_cast<std::size_t>(k)] * std::exp(-(v - c[static_cast<std::size_t>(k)]).squaredNorm() / 0.15);
     v *= std::max(r, 0.2);
   }
   return m;

@@ -24,28 +24,37 @@ Model read_model(const json& value, const std::string& field) {
 
 const char* model_name(Model model) {
   switch (model) {
-    case Model::klein: return "klein";
-    case Model::poincare: return "poincare";
+    case Model::klein:
+      return "klein";
+    case Model::poincare:
+      return "poincare";
     case Model::hyperboloid:
-    default: return "hyperboloid";
+    default:
+      return "hyperboloid";
   }
 }
 
-int dimension(Model model) { return model == Model::hyperboloid ? 3 : 2; }
+int dimension(Model model) {
+  return model == Model::hyperboloid ? 3 : 2;
+}
 
 std::vector<Point> to_points(const std::vector<Eigen::VectorXd>& points, Model model, const std::string& field) {
   std::vector<Point> result;
   result.reserve(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i) result.push_back(Hyperbolic::from_model(model, points[i], indexed(field, i)));
+  for (std::size_t i = 0; i < points.size(); ++i)
+    result.push_back(Hyperbolic::from_model(model, points[i], indexed(field, i)));
   return result;
 }
 
 json point_in(Model model, const Point& x) {
   switch (model) {
-    case Model::klein: return point_json(Eigen::Vector2d(Hyperbolic::to_klein(x)));
-    case Model::poincare: return point_json(Eigen::Vector2d(Hyperbolic::to_poincare(x)));
+    case Model::klein:
+      return point_json(Eigen::Vector2d(Hyperbolic::to_klein(x)));
+    case Model::poincare:
+      return point_json(Eigen::Vector2d(Hyperbolic::to_poincare(x)));
     case Model::hyperboloid:
-    default: return point_json(x);
+    default:
+      return point_json(x);
   }
 }
 
@@ -92,11 +101,12 @@ std::string geodesic_path(const std::vector<Point>& vertices) {
 std::string draw(const Hyperbolic& geometry, std::span<const Point> sites, const Result<Point>& result) {
   const double scale = kPixels / 2.08;
   std::string body;
-  body += fmt::format("<circle cx=\"{0:.2f}\" cy=\"{0:.2f}\" r=\"{1:.2f}\" fill=\"#fbfbfb\" stroke=\"black\" "
-                      "stroke-width=\"1.2\"/>\n",
-                      1.04 * scale, scale);
-  body += "<path d=\"" + geodesic_path(geometry.domain()) +
-          "\" fill=\"#ececec\" stroke=\"black\" stroke-width=\"1.5\"/>\n";
+  body += fmt::format(
+      "<circle cx=\"{0:.2f}\" cy=\"{0:.2f}\" r=\"{1:.2f}\" fill=\"#fbfbfb\" stroke=\"black\" "
+      "stroke-width=\"1.2\"/>\n",
+      1.04 * scale, scale);
+  body +=
+      "<path d=\"" + geodesic_path(geometry.domain()) + "\" fill=\"#ececec\" stroke=\"black\" stroke-width=\"1.5\"/>\n";
   const double stroke = std::clamp(3.0 / std::sqrt(static_cast<double>(sites.size())), 0.2, 1.0);
   for (const auto& cell : result.diagram.cells)
     if (!cell.empty())
@@ -111,22 +121,26 @@ std::string draw(const Hyperbolic& geometry, std::span<const Point> sites, const
   };
   for (const auto& c : result.centroids) dot(c, 0.8 * r, "#20a040");
   for (const auto& s : sites) dot(s, r, "#d03020");
-  body += fmt::format("<text x=\"8\" y=\"20\" font-family=\"sans-serif\" font-size=\"14\">hyperbolic plane, "
-                      "Poincare disc: {} sites</text>\n",
-                      sites.size());
-  return fmt::format("<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{0:.0f}\" height=\"{0:.0f}\" "
-                     "viewBox=\"0 0 {0:.0f} {0:.0f}\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n{1}</svg>\n",
-                     kPixels, body);
+  body += fmt::format(
+      "<text x=\"8\" y=\"20\" font-family=\"sans-serif\" font-size=\"14\">hyperbolic plane, "
+      "Poincare disc: {} sites</text>\n",
+      sites.size());
+  return fmt::format(
+      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{0:.0f}\" height=\"{0:.0f}\" "
+      "viewBox=\"0 0 {0:.0f} {0:.0f}\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n{1}</svg>\n",
+      kPixels, body);
 }
 
 // ---- solve -------------------------------------------------------------------------------
 
 SolveOutput solve_hyperbolic(const json& problem, const RunContext& context) {
-  check_known_fields(problem, "", {"geometry", "sites", "sites_model", "masses", "domain", "density", "tolerance",
-                                   "max_iterations", "weights", "linear_solver"});
+  check_known_fields(problem, "",
+                     {"geometry", "sites", "sites_model", "masses", "domain", "density", "tolerance", "max_iterations",
+                      "weights", "linear_solver"});
   if (!problem.contains("domain"))
-    throw InputError("domain", "missing: the hyperbolic plane needs a compact source domain, e.g. "
-                               "{\"model\": \"klein\", \"vertices\": [[-0.5,-0.5], [0.5,-0.5], [0, 0.6]]}");
+    throw InputError("domain",
+                     "missing: the hyperbolic plane needs a compact source domain, e.g. "
+                     "{\"model\": \"klein\", \"vertices\": [[-0.5,-0.5], [0.5,-0.5], [0, 0.6]]}");
   const json& domain_json = problem["domain"];
   check_known_fields(domain_json, "domain", {"model", "vertices"});
   if (!domain_json.contains("model"))
@@ -136,7 +150,8 @@ SolveOutput solve_hyperbolic(const json& problem, const RunContext& context) {
   const auto domain_vertices = read_points(domain_json["vertices"], "domain", dimension(domain_model));
   const Hyperbolic geometry = Hyperbolic::from_model(domain_model, domain_vertices);
 
-  const Model sites_model = problem.contains("sites_model") ? read_model(problem["sites_model"], "sites_model") : domain_model;
+  const Model sites_model =
+      problem.contains("sites_model") ? read_model(problem["sites_model"], "sites_model") : domain_model;
   if (!problem.contains("sites")) throw InputError("sites", "missing");
   const auto sites = to_points(read_points(problem["sites"], "sites", dimension(sites_model)), sites_model, "sites");
   if (sites.empty()) throw InputError("sites", "at least one site is needed");
@@ -167,7 +182,9 @@ SolveOutput solve_hyperbolic(const json& problem, const RunContext& context) {
 
 /// The benchmark domain: the regular octagon of circumradius 1.5 centred at distance 2 from the
 /// origin (on the positive x axis).
-Hyperbolic bench_domain() { return Hyperbolic::regular_polygon(8, 1.5, Hyperbolic::polar(2, 0)); }
+Hyperbolic bench_domain() {
+  return Hyperbolic::regular_polygon(8, 1.5, Hyperbolic::polar(2, 0));
+}
 
 /// `n` sites uniform in hyperbolic area over the domain.
 std::vector<Point> uniform_sites(const Hyperbolic& geometry, std::size_t n, std::mt19937_64& random) {
@@ -219,12 +236,9 @@ json demo_hyperbolic() {
     points.push_back(point_json(p));
     masses.push_back(1 + 4.5 * (1 + p.x()));
   }
-  return {{"geometry", "hyperbolic"},
-          {"domain", {{"model", "poincare"}, {"vertices", domain}}},
-          {"sites_model", "poincare"},
-          {"sites", points},
-          {"masses", masses},
-          {"tolerance", 1e-9}};
+  return {{"geometry", "hyperbolic"},  {"domain", {{"model", "poincare"}, {"vertices", domain}}},
+          {"sites_model", "poincare"}, {"sites", points},
+          {"masses", masses},          {"tolerance", 1e-9}};
 }
 
 }  // namespace

@@ -14,19 +14,29 @@ namespace {
 
 using Point = Hyperbolic::Point;
 
-double mink(const Point& a, const Point& b) { return Hyperbolic::minkowski(a, b); }
+double mink(const Point& a, const Point& b) {
+  return Hyperbolic::minkowski(a, b);
+}
 
 /// √⟨d, d⟩_M for a spacelike difference d of two hyperboloid points (0 if rounding makes it negative).
-double spacelike_norm(const Point& d) { return std::sqrt(std::max(0.0, mink(d, d))); }
+double spacelike_norm(const Point& d) {
+  return std::sqrt(std::max(0.0, mink(d, d)));
+}
 
 /// Hyperbolic length of the geodesic segment [a, b]: 2 asinh(‖b − a‖_M / 2) (stable for short edges).
-double length(const Point& a, const Point& b) { return 2 * std::asinh(spacelike_norm(b - a) / 2); }
+double length(const Point& a, const Point& b) {
+  return 2 * std::asinh(spacelike_norm(b - a) / 2);
+}
 
 /// Central projection of a non-zero timelike X (x₃ > 0) onto the hyperboloid.
-Point normalize(const Point& x) { return x / std::sqrt(-mink(x, x)); }
+Point normalize(const Point& x) {
+  return x / std::sqrt(-mink(x, x));
+}
 
 /// A point of the open disc given in chart coordinates, lifted to the hyperboloid.
-Point lift(const Vec2& k) { return Point(k.x(), k.y(), 1) / std::sqrt((1 - k.x()) * (1 + k.x()) - k.y() * k.y()); }
+Point lift(const Vec2& k) {
+  return Point(k.x(), k.y(), 1) / std::sqrt((1 - k.x()) * (1 + k.x()) - k.y() * k.y());
+}
 
 /// Visits the quadrature points of the centrally projected flat triangle (a, b, c) of hyperboloid
 /// points: visit(x, dA) with x on H² and dA = |det(a, b, c)| / (−⟨X, X⟩_M)^{3/2} · weight.
@@ -63,7 +73,8 @@ double cost_integral(const Point& a, const Point& b, const Point& c, const Point
            cost_integral(ab, bc, ca, y);
   }
   double sum = 0;
-  triangle_quadrature(a, b, c, cost_order(size), [&](const Point& x, double da) { sum += da * Hyperbolic::cost(x, y); });
+  triangle_quadrature(a, b, c, cost_order(size),
+                      [&](const Point& x, double da) { sum += da * Hyperbolic::cost(x, y); });
   return sum;
 }
 
@@ -78,7 +89,9 @@ Point inner_point(const std::vector<Point>& vertices) {
 
 // ---- coordinates -------------------------------------------------------------------------
 
-double Hyperbolic::distance(const Point& a, const Point& b) { return length(a, b); }
+double Hyperbolic::distance(const Point& a, const Point& b) {
+  return length(a, b);
+}
 
 Hyperbolic::Point Hyperbolic::from_klein(const Eigen::Vector2d& k, const std::string& field) {
   if (!k.allFinite()) throw InputError(field, "coordinate is not finite");
@@ -115,10 +128,13 @@ Hyperbolic::Point Hyperbolic::from_model(Model model, const Eigen::VectorXd& c, 
   if (c.size() != need)
     throw InputError(field, "expected " + std::to_string(need) + " coordinates, got " + std::to_string(c.size()));
   switch (model) {
-    case Model::klein: return from_klein(Eigen::Vector2d(c[0], c[1]), field);
-    case Model::poincare: return from_poincare(Eigen::Vector2d(c[0], c[1]), field);
+    case Model::klein:
+      return from_klein(Eigen::Vector2d(c[0], c[1]), field);
+    case Model::poincare:
+      return from_poincare(Eigen::Vector2d(c[0], c[1]), field);
     case Model::hyperboloid:
-    default: return from_hyperboloid(Point(c[0], c[1], c[2]), field);
+    default:
+      return from_hyperboloid(Point(c[0], c[1], c[2]), field);
   }
 }
 
@@ -168,7 +184,8 @@ void Hyperbolic::set_domain(std::vector<Point> vertices) {
 Hyperbolic Hyperbolic::from_model(Model model, std::span<const Eigen::VectorXd> vertices) {
   std::vector<Point> points;
   points.reserve(vertices.size());
-  for (std::size_t k = 0; k < vertices.size(); ++k) points.push_back(from_model(model, vertices[k], indexed("domain", k)));
+  for (std::size_t k = 0; k < vertices.size(); ++k)
+    points.push_back(from_model(model, vertices[k], indexed("domain", k)));
   Hyperbolic h;
   h.set_domain(std::move(points));
   return h;
@@ -345,13 +362,11 @@ double Hyperbolic::facet_weight(const Point& a, const Point& b, const Point& sit
                                 const Point& site_j, double weight_j) const {
   const Point la = inverse_boost_ * a, lb = inverse_boost_ * b, yi = inverse_boost_ * site_i;
   const double l = length(la, lb);
-  return std::tanh(l / 2) * -mink(yi, la + lb) /
-         scaled_normal_norm(yi, weight_i, inverse_boost_ * site_j, weight_j);
+  return std::tanh(l / 2) * -mink(yi, la + lb) / scaled_normal_norm(yi, weight_i, inverse_boost_ * site_j, weight_j);
 }
 
 double Hyperbolic::facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i,
-                                const Point& site_j, double weight_j, const ScalarField<Point>& rho,
-                                int order) const {
+                                const Point& site_j, double weight_j, const ScalarField<Point>& rho, int order) const {
   const Point la = inverse_boost_ * a, lb = inverse_boost_ * b, yi = inverse_boost_ * site_i;
   const double l = length(la, lb);
   if (!(l > 0)) return 0;

@@ -104,7 +104,8 @@ Cell<Point> cell_of(const std::vector<Eigen::Vector2d>& klein) {
 
 /// High-order reference integrals over a cell (fan from vertex 0, 40² points per triangle).
 CellIntegrals<Point> reference_integrals(const Hyperbolic& g, const Cell<Point>& cell, const Point& site) {
-  return g.integrate(cell, site, [](const Point&) { return 1.0; }, 40);
+  return g.integrate(
+      cell, site, [](const Point&) { return 1.0; }, 40);
 }
 
 TEST(Hyperbolic, CoordinateConversions) {
@@ -125,9 +126,9 @@ TEST(Hyperbolic, CoordinateConversions) {
 TEST(Hyperbolic, ExactIntegralsMatchQuadratureAndAngleDefect) {
   const auto g = klein_pentagon();
   for (const auto& klein : std::vector<std::vector<Eigen::Vector2d>>{
-           {{0.1, 0}, {0.5, 0.2}, {0.4, 0.6}, {0.0, 0.5}},            // moderate
-           {{-0.8, -0.5}, {0.85, -0.4}, {0.7, 0.6}, {-0.7, 0.65}},    // large, near the ideal boundary
-           {{0.3, 0.3}, {0.305, 0.3}, {0.302, 0.304}}}) {             // tiny
+           {{0.1, 0}, {0.5, 0.2}, {0.4, 0.6}, {0.0, 0.5}},          // moderate
+           {{-0.8, -0.5}, {0.85, -0.4}, {0.7, 0.6}, {-0.7, 0.65}},  // large, near the ideal boundary
+           {{0.3, 0.3}, {0.305, 0.3}, {0.302, 0.304}}}) {           // tiny
     const auto cell = cell_of(klein);
     for (const Point& site : {Point(Hyperbolic::from_klein(Eigen::Vector2d(0.2, 0.3))), Hyperbolic::polar(4, 2)}) {
       const auto exact = g.integrate(cell, site);
@@ -152,8 +153,8 @@ TEST(Hyperbolic, FunctionDensityQuadratureIsAccurate) {
   const auto cell = cell_of({{-0.6, -0.4}, {0.5, -0.5}, {0.6, 0.3}, {-0.2, 0.6}});
   const Point beta(0.3, -0.2, 0.1);
   const auto exact = g.integrate(cell, Point(0, 0, 1));
-  const auto quadrature =
-      g.integrate(cell, Point(0, 0, 1), [&](const Point& x) { return 1 + Hyperbolic::minkowski(beta, x); }, 24);
+  const auto quadrature = g.integrate(
+      cell, Point(0, 0, 1), [&](const Point& x) { return 1 + Hyperbolic::minkowski(beta, x); }, 24);
   EXPECT_NEAR(quadrature.mass, exact.mass + Hyperbolic::minkowski(beta, exact.first_moment), 1e-12 * exact.mass);
 }
 
@@ -271,10 +272,12 @@ TEST(HyperbolicBadInput, PointsOnOrOutsideTheIdealBoundary) {
   const std::vector<Eigen::Vector2d> on{{0, 0}, {1, 0}, {0, 0.5}};
   EXPECT_EQ(input_error([&] { Hyperbolic::from_klein(on); }).rfind("domain[1]: Klein point lies on or outside", 0), 0u);
   const std::vector<Eigen::Vector2d> outside{{0, 0}, {0.5, 0}, {0.3, 0.5}, {-0.8, 0.9}};
-  EXPECT_EQ(input_error([&] { Hyperbolic::from_poincare(outside); }).rfind("domain[3]: Poincare point lies on or outside", 0),
-            0u);
-  EXPECT_EQ(input_error([] { Hyperbolic::from_klein(Eigen::Vector2d(0.6, -0.8), "sites[5]"); })
-                .rfind("sites[5]: Klein point lies on or outside the ideal boundary", 0),
+  EXPECT_EQ(
+      input_error([&] { Hyperbolic::from_poincare(outside); }).rfind("domain[3]: Poincare point lies on or outside", 0),
+      0u);
+  EXPECT_EQ(input_error([] {
+              Hyperbolic::from_klein(Eigen::Vector2d(0.6, -0.8), "sites[5]");
+            }).rfind("sites[5]: Klein point lies on or outside the ideal boundary", 0),
             0u);
 }
 
@@ -285,12 +288,14 @@ TEST(HyperbolicBadInput, NonFiniteAndOffTheHyperboloid) {
             "sites[1]: coordinate is not finite");
   sites[1] = Point(0.5, 0.5, 1);  // ⟨x, x⟩_M = −0.5
   sites[2] = Hyperbolic::polar(1, 1);
-  EXPECT_EQ(input_error([&] { solve(g, UniformDensity{}, std::span<const Point>(sites), equal_masses(3)); })
-                .rfind("sites[1]: point is not on the hyperboloid", 0),
+  EXPECT_EQ(input_error([&] {
+              solve(g, UniformDensity{}, std::span<const Point>(sites), equal_masses(3));
+            }).rfind("sites[1]: point is not on the hyperboloid", 0),
             0u);
   sites[1] = -Hyperbolic::polar(1, 2);  // lower sheet
-  EXPECT_EQ(input_error([&] { solve(g, UniformDensity{}, std::span<const Point>(sites), equal_masses(3)); })
-                .rfind("sites[1]: point is not on the hyperboloid", 0),
+  EXPECT_EQ(input_error([&] {
+              solve(g, UniformDensity{}, std::span<const Point>(sites), equal_masses(3));
+            }).rfind("sites[1]: point is not on the hyperboloid", 0),
             0u);
   sites[1] = sites[2];
   EXPECT_EQ(input_error([&] { solve(g, UniformDensity{}, std::span<const Point>(sites), equal_masses(3)); }),

@@ -36,8 +36,9 @@ std::string draw(const Plane& plane, std::span<const Point> sites, const Result<
 }
 
 SolveOutput solve_plane(const json& problem, const RunContext& context) {
-  check_known_fields(problem, "", {"geometry", "sites", "masses", "domain", "density", "tolerance",
-                                   "max_iterations", "weights", "linear_solver"});
+  check_known_fields(
+      problem, "",
+      {"geometry", "sites", "masses", "domain", "density", "tolerance", "max_iterations", "weights", "linear_solver"});
   if (!problem.contains("sites")) throw InputError("sites", "missing");
   const auto sites = to_points(read_points(problem["sites"], "sites", 2));
   if (sites.empty()) throw InputError("sites", "at least one site is needed");
@@ -88,6 +89,8 @@ json demo_plane() {
 
 }  // namespace
 
-void register_plane(Registry& registry) { registry.add("plane", {solve_plane, bench_plane, demo_plane}); }
+void register_plane(Registry& registry) {
+  registry.add("plane", {solve_plane, bench_plane, demo_plane});
+}
 
 }  // namespace sdot::cli

@@ -9,7 +9,9 @@
 
 namespace sdot {
 namespace {
-double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
+double cross(const Vec2& a, const Vec2& b) {
+  return a.x() * b.y() - a.y() * b.x();
+}
 }  // namespace
 
 Plane::Plane() : domain_(ConvexPolygon::rectangle(0, 0, 1, 1)) {}
@@ -95,8 +97,8 @@ CellIntegrals<Plane::Point> Plane::integrate(const Cell<Point>& cell, const Poin
   return result;
 }
 
-CellIntegrals<Plane::Point> Plane::integrate(const Cell<Point>& cell, const Point& site,
-                                             const ScalarField<Point>& rho, int order) const {
+CellIntegrals<Plane::Point> Plane::integrate(const Cell<Point>& cell, const Point& site, const ScalarField<Point>& rho,
+                                             int order) const {
   const auto& rule = triangle_rule(order);
   CellIntegrals<Point> result;
   const Vec2& a = cell.vertices[0];
@@ -114,13 +116,13 @@ CellIntegrals<Plane::Point> Plane::integrate(const Cell<Point>& cell, const Poin
   return result;
 }
 
-double Plane::facet_weight(const Point& a, const Point& b, const Point& site_i, double,
-                           const Point& site_j, double) const {
+double Plane::facet_weight(const Point& a, const Point& b, const Point& site_i, double, const Point& site_j,
+                           double) const {
   return (b - a).norm() / (site_i - site_j).norm();
 }
 
-double Plane::facet_weight(const Point& a, const Point& b, const Point& site_i, double, const Point& site_j,
-                           double, const ScalarField<Point>& rho, int order) const {
+double Plane::facet_weight(const Point& a, const Point& b, const Point& site_i, double, const Point& site_j, double,
+                           const ScalarField<Point>& rho, int order) const {
   double integral = 0;
   for (const auto& node : gauss_legendre(order)) integral += node.weight * rho(a + node.x * (b - a));
   return integral * (b - a).norm() / (site_i - site_j).norm();

@@ -62,12 +62,14 @@ TEST(Plane, QuadratureMatchesExactFormulas) {
   Cell<Plane::Point> cell{{{0.1, 0}, {1, 0.2}, {0.8, 0.9}, {0.2, 0.7}}, {-1, -2, -3, -4}};
   const Plane::Point site(0.3, 0.4);
   const auto exact = plane.integrate(cell, site);
-  const auto quadrature = plane.integrate(cell, site, [](const Plane::Point&) { return 1.0; }, 3);
+  const auto quadrature = plane.integrate(
+      cell, site, [](const Plane::Point&) { return 1.0; }, 3);
   EXPECT_NEAR(quadrature.mass, exact.mass, 1e-15);
   EXPECT_NEAR((quadrature.first_moment - exact.first_moment).norm(), 0, 1e-15);
   EXPECT_NEAR(quadrature.cost, exact.cost, 1e-15);
   // ρ = 1 + x: mass = area + first moment x.
-  const auto linear = plane.integrate(cell, site, [](const Plane::Point& x) { return 1 + x.x(); }, 2);
+  const auto linear = plane.integrate(
+      cell, site, [](const Plane::Point& x) { return 1 + x.x(); }, 2);
   EXPECT_NEAR(linear.mass, exact.mass + exact.first_moment.x(), 1e-15);
 }
 
@@ -242,13 +244,17 @@ TEST(PlaneBadInput, NonPositiveMasses) {
   const auto sites = random_unit_square(3, 1);
   Eigen::VectorXd masses(3);
   masses << 1, 0, 1;
-  EXPECT_EQ(input_error([&] { solve(Plane(), UniformDensity{}, std::span(sites), masses); }).rfind("masses[1]:", 0), 0u);
+  EXPECT_EQ(input_error([&] { solve(Plane(), UniformDensity{}, std::span(sites), masses); }).rfind("masses[1]:", 0),
+            0u);
   masses << 1, 1, -2;
-  EXPECT_EQ(input_error([&] { solve(Plane(), UniformDensity{}, std::span(sites), masses); }).rfind("masses[2]:", 0), 0u);
+  EXPECT_EQ(input_error([&] { solve(Plane(), UniformDensity{}, std::span(sites), masses); }).rfind("masses[2]:", 0),
+            0u);
   masses << 1, NAN, 1;
-  EXPECT_EQ(input_error([&] { solve(Plane(), UniformDensity{}, std::span(sites), masses); }).rfind("masses[1]:", 0), 0u);
-  EXPECT_NE(input_error([&] { solve(Plane(), UniformDensity{}, std::span(sites), equal_masses(2)); })
-                .find("2 masses for 3 sites"),
+  EXPECT_EQ(input_error([&] { solve(Plane(), UniformDensity{}, std::span(sites), masses); }).rfind("masses[1]:", 0),
+            0u);
+  EXPECT_NE(input_error([&] {
+              solve(Plane(), UniformDensity{}, std::span(sites), equal_masses(2));
+            }).find("2 masses for 3 sites"),
             std::string::npos);
 }
 
@@ -261,9 +267,13 @@ TEST(PlaneBadInput, DuplicateSites) {
 TEST(PlaneBadInput, DegenerateDomains) {
   EXPECT_EQ(input_error([] { ConvexPolygon({{0, 0}, {1, 0}}); }).rfind("domain:", 0), 0u);
   EXPECT_EQ(input_error([] { ConvexPolygon({{0, 0}, {1, 0}, {2, 0}}); }), "domain: polygon is degenerate (zero area)");
-  EXPECT_EQ(input_error([] { ConvexPolygon({{0, 0}, {1, 0}, {1, 0}, {0, 1}}); }),
+  EXPECT_EQ(input_error([] {
+              ConvexPolygon({{0, 0}, {1, 0}, {1, 0}, {0, 1}});
+            }),
             "domain[2]: vertex coincides with the previous one");
-  EXPECT_EQ(input_error([] { ConvexPolygon({{0, 0}, {2, 0}, {1, 0.2}, {1, 2}}); }),
+  EXPECT_EQ(input_error([] {
+              ConvexPolygon({{0, 0}, {2, 0}, {1, 0.2}, {1, 2}});
+            }),
             "domain[2]: polygon is not convex at this vertex");
   EXPECT_EQ(input_error([] { ConvexPolygon({{0, 0}, {1, NAN}, {0, 1}}); }), "domain[1]: vertex is not finite");
 }
@@ -287,8 +297,9 @@ TEST(PlaneBadInput, InvalidOptions) {
   const auto sites = random_unit_square(5, 3);
   Options options;
   options.tolerance = -1;
-  EXPECT_EQ(input_error([&] { solve(Plane(), UniformDensity{}, std::span(sites), equal_masses(5), options); })
-                .rfind("options.tolerance:", 0),
+  EXPECT_EQ(input_error([&] {
+              solve(Plane(), UniformDensity{}, std::span(sites), equal_masses(5), options);
+            }).rfind("options.tolerance:", 0),
             0u);
   options = {};
   options.max_step_halvings = 0;
@@ -299,8 +310,9 @@ TEST(PlaneBadInput, InitialWeightsThatEmptyACell) {
   const std::vector<Plane::Point> sites{{0.2, 0.5}, {0.8, 0.5}};
   Eigen::VectorXd weights(2);
   weights << 10, 0;  // site 0 takes everything
-  EXPECT_EQ(input_error([&] { solve(Plane(), UniformDensity{}, std::span(sites), equal_masses(2), {}, weights); })
-                .rfind("weights[1]: the initial weights leave the cell of site 1 empty", 0),
+  EXPECT_EQ(input_error([&] {
+              solve(Plane(), UniformDensity{}, std::span(sites), equal_masses(2), {}, weights);
+            }).rfind("weights[1]: the initial weights leave the cell of site 1 empty", 0),
             0u);
 }
 

@@ -75,8 +75,12 @@ Eigen::Vector2d mollweide(double longitude, double latitude) {
   return {2 * std::sqrt(2.0) / pi * longitude * std::cos(theta), std::sqrt(2.0) * std::sin(theta)};
 }
 
-double longitude_of(const Point& x) { return std::atan2(x.y(), x.x()); }
-double latitude_of(const Point& x) { return std::asin(std::clamp(x.z(), -1.0, 1.0)); }
+double longitude_of(const Point& x) {
+  return std::atan2(x.y(), x.x());
+}
+double latitude_of(const Point& x) {
+  return std::asin(std::clamp(x.z(), -1.0, 1.0));
+}
 
 /// A polyline on the sphere as projected polylines, cut where it crosses the seam (longitude ±π):
 /// the crossing point is interpolated and each piece ends on its side of the map.
@@ -128,7 +132,8 @@ std::string draw(const Sphere& sphere, std::span<const Point> sites, const Resul
     }
   }
   const double r = dot_radius_px(sites.size());
-  for (const auto& c : result.centroids) svg.circle(mollweide(longitude_of(c), latitude_of(c)), r * 0.8, "fill=\"#20a040\"");
+  for (const auto& c : result.centroids)
+    svg.circle(mollweide(longitude_of(c), latitude_of(c)), r * 0.8, "fill=\"#20a040\"");
   for (const auto& s : sites) {
     const Point p = s.normalized();
     svg.circle(mollweide(longitude_of(p), latitude_of(p)), r, "fill=\"#d03020\"");
@@ -139,18 +144,23 @@ std::string draw(const Sphere& sphere, std::span<const Point> sites, const Resul
 // ---- commands --------------------------------------------------------------------------
 
 SolveOutput solve_sphere(const json& problem, const RunContext& context) {
-  check_known_fields(problem, "", {"geometry", "sites", "masses", "domain", "density", "tolerance", "max_iterations",
-                                   "weights", "linear_solver", "builder"});
+  check_known_fields(problem, "",
+                     {"geometry", "sites", "masses", "domain", "density", "tolerance", "max_iterations", "weights",
+                      "linear_solver", "builder"});
   if (!problem.contains("sites")) throw InputError("sites", "missing");
   const auto sites = to_points(read_points(problem["sites"], "sites", 3));
   if (sites.empty()) throw InputError("sites", "at least one site is needed");
   Sphere sphere = read_domain(problem);
   if (problem.contains("builder")) {
     const auto& builder = problem["builder"];
-    if (builder == "automatic") sphere.set_builder(Sphere::Builder::automatic);
-    else if (builder == "clipping") sphere.set_builder(Sphere::Builder::clipping);
-    else if (builder == "hull") sphere.set_builder(Sphere::Builder::hull);
-    else throw InputError("builder", "must be \"automatic\", \"clipping\" or \"hull\"");
+    if (builder == "automatic")
+      sphere.set_builder(Sphere::Builder::automatic);
+    else if (builder == "clipping")
+      sphere.set_builder(Sphere::Builder::clipping);
+    else if (builder == "hull")
+      sphere.set_builder(Sphere::Builder::hull);
+    else
+      throw InputError("builder", "must be \"automatic\", \"clipping\" or \"hull\"");
   }
   if (problem.contains("density")) {
     const json& density = problem["density"];
@@ -159,8 +169,8 @@ SolveOutput solve_sphere(const json& problem, const RunContext& context) {
       throw InputError("density.type", "unknown density type (supported: \"uniform\")");
   }
   const Options options = read_options(problem, context.quiet);
-  const auto result = solve(sphere, UniformDensity{}, std::span<const Point>(sites),
-                            read_masses(problem, sites.size()), options, read_weights(problem, sites.size()));
+  const auto result = solve(sphere, UniformDensity{}, std::span<const Point>(sites), read_masses(problem, sites.size()),
+                            options, read_weights(problem, sites.size()));
   SolveOutput output;
   output.result = result_json("sphere", result);
   output.converged = result.summary.converged();
@@ -190,8 +200,8 @@ json bench_sphere(const BenchRequest& request) {
                    r.max_relative_error, r.step, r.elapsed_s);
     };
   const Sphere sphere;
-  const auto result = solve(sphere, UniformDensity{}, std::span<const Point>(sites),
-                            equal_masses(request.n, 4 * pi), options);
+  const auto result =
+      solve(sphere, UniformDensity{}, std::span<const Point>(sites), equal_masses(request.n, 4 * pi), options);
   return bench_json("sphere", request.n, result);
 }
 
@@ -208,6 +218,8 @@ json demo_sphere() {
 
 }  // namespace
 
-void register_sphere(Registry& registry) { registry.add("sphere", {solve_sphere, bench_sphere, demo_sphere}); }
+void register_sphere(Registry& registry) {
+  registry.add("sphere", {solve_sphere, bench_sphere, demo_sphere});
+}
 
 }  // namespace sdot::cli

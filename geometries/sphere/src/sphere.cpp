@@ -17,7 +17,9 @@ namespace {
 constexpr double pi = std::numbers::pi;
 constexpr int arc_label = boundary_label(0);  // the cap's boundary circle
 
-double cross2(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
+double cross2(const Vec2& a, const Vec2& b) {
+  return a.x() * b.y() - a.y() * b.x();
+}
 
 /// A right-handed orthonormal frame (t1, t2, c): t1 × t2 = c. Counter-clockwise in the gnomonic
 /// chart v ↦ (t1 v₁ + t2 v₂ + c)/|·| is counter-clockwise seen from outside the sphere.
@@ -80,7 +82,7 @@ Cell<Vec3> to_sphere(const ChartCell& chart, const Eigen::Matrix3d& frame) {
 
 /// Sites in a uniform 3-D grid over [−1, 1]³ (bins sorted by index), for neighbour searches.
 class SiteGrid {
-public:
+ public:
   explicit SiteGrid(std::span<const Vec3> points) {
     const double n = static_cast<double>(points.size());
     size_ = std::max(1, static_cast<int>(std::min(std::sqrt(n / 12.0), std::cbrt(8 * n))));
@@ -135,7 +137,7 @@ public:
         }
   }
 
-private:
+ private:
   int size_ = 1;
   double width_ = 2;
   std::vector<int> start_, items_;
@@ -145,7 +147,7 @@ private:
 /// "which sites beat level L at x" queries: e^{h_j}⟨x, p_j⟩ > L. Each node keeps a cone (unit
 /// axis c, angular radius α) containing its sites, so max_j ⟨x, p_j⟩ ≤ cos(max(0, ∠(x, c) − α)).
 class ScaleTree {
-public:
+ public:
   ScaleTree(std::span<const Vec3> points, std::span<const double> scales)
       : points_(points), scales_(scales), order_(points.size()) {
     for (std::size_t k = 0; k < order_.size(); ++k) order_[k] = static_cast<int>(k);
@@ -179,7 +181,7 @@ public:
     }
   }
 
-private:
+ private:
   static constexpr int leaf_size = 8;
   struct Node {
     Vec3 axis = Vec3::UnitZ();
@@ -278,7 +280,7 @@ void for_each_node(const Sphere& sphere, const Cell<Vec3>& cell, Order&& order_f
       const double h = 1.0 / m;
       for (int u = 0; u < m; ++u)
         for (int v = 0; u + v < m; ++v) {
-          sub(u * h, v * h, h, 0, 0, h);                         // (u,v) (u+1,v) (u,v+1)
+          sub(u * h, v * h, h, 0, 0, h);                             // (u,v) (u+1,v) (u,v+1)
           if (u + v + 2 <= m) sub((u + 1) * h, v * h, 0, h, -h, h);  // (u+1,v) (u+1,v+1) (u,v+1)
         }
     } else {
@@ -364,7 +366,8 @@ Sphere Sphere::polygon(std::vector<Point> vertices) {
 
 double Sphere::domain_area() const {
   switch (domain_) {
-    case Domain::cap: return 4 * pi * std::pow(std::sin(angle_ / 2), 2);
+    case Domain::cap:
+      return 4 * pi * std::pow(std::sin(angle_ / 2), 2);
     case Domain::polygon: {
       double area = 0;
       for (std::size_t k = 1; k + 1 < vertices_.size(); ++k)
@@ -372,11 +375,14 @@ double Sphere::domain_area() const {
       return area;
     }
     case Domain::sphere:
-    default: return 4 * pi;
+    default:
+      return 4 * pi;
   }
 }
 
-double Sphere::cost(const Point& x, const Point& y) { return log_cost(x.normalized(), y.normalized()); }
+double Sphere::cost(const Point& x, const Point& y) {
+  return log_cost(x.normalized(), y.normalized());
+}
 
 // ---- sites -----------------------------------------------------------------------------
 
@@ -426,8 +432,10 @@ void Sphere::validate_sites(std::span<const Point> sites) const {
       double best_dot = -INFINITY;
       for (std::size_t i = 0; i < p.size(); ++i)
         if (const double dot = p[i].dot(directions[d]); dot > best_dot) best_dot = dot, best = i;
-      if (d == 0) v0 = p[best];
-      else m.col(d - 1) = p[best] - v0;
+      if (d == 0)
+        v0 = p[best];
+      else
+        m.col(d - 1) = p[best] - v0;
     }
     // 0 = v0 + m λ; barycentric coordinates (1 − Σλ, λ) must all be positive.
     const Vec3 lambda = m.fullPivLu().solve(-v0);
@@ -598,7 +606,8 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
       candidates.clear();
       for (int r = 0; r < 2; ++r)
         grid.ring(bx, by, bz, r, [&](int j) {
-          if (static_cast<std::size_t>(j) != i) candidates.emplace_back((p[static_cast<std::size_t>(j)] - p[i]).squaredNorm(), j);
+          if (static_cast<std::size_t>(j) != i)
+            candidates.emplace_back((p[static_cast<std::size_t>(j)] - p[i]).squaredNorm(), j);
         });
       std::sort(candidates.begin(), candidates.end());
       double half = initial_half;
@@ -743,7 +752,7 @@ Diagram<Sphere::Point> Sphere::build_in_chart(std::span<const Point> sites, cons
     }
     if (disk_cell.vertices.empty()) {
       if (!contains_center) continue;  // disjoint from the cap
-      for (int k = 0; k < 4; ++k) {  // the whole cap
+      for (int k = 0; k < 4; ++k) {    // the whole cap
         disk_cell.vertices.emplace_back(radius * std::cos(k * pi / 2), radius * std::sin(k * pi / 2));
         disk_cell.neighbors.push_back(arc_label);
       }
@@ -816,17 +825,19 @@ CellIntegrals<Sphere::Point> Sphere::integrate(const Cell<Point>& cell, const Po
   CellIntegrals<Point> result;
   if (cell.size() < 3) return result;
   const Vec3 p = site.normalized();
-  for_each_node(*this, cell, [order](double) { return order; }, [&](const Vec3& x, double w) {
-    const double m = w * rho(x);
-    result.mass += m;
-    result.first_moment += m * x;
-    result.cost += m * log_cost(x, p);
-  });
+  for_each_node(
+      *this, cell, [order](double) { return order; },
+      [&](const Vec3& x, double w) {
+        const double m = w * rho(x);
+        result.mass += m;
+        result.first_moment += m * x;
+        result.cost += m * log_cost(x, p);
+      });
   return result;
 }
 
-double Sphere::facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i,
-                            const Point& site_j, double weight_j) const {
+double Sphere::facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i, const Point& site_j,
+                            double weight_j) const {
   const Vec3 qi = std::exp(weight_i) * site_i.normalized();
   const double gap = (qi - std::exp(weight_j) * site_j.normalized()).norm();
   const Vec3 normal = a.cross(b - a);
@@ -836,9 +847,8 @@ double Sphere::facet_weight(const Point& a, const Point& b, const Point& site_i,
   return qi.dot((b - a).cross(normal / s)) / gap;
 }
 
-double Sphere::facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i,
-                            const Point& site_j, double weight_j, const ScalarField<Point>& rho,
-                            int order) const {
+double Sphere::facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i, const Point& site_j,
+                            double weight_j, const ScalarField<Point>& rho, int order) const {
   const Vec3 qi = std::exp(weight_i) * site_i.normalized();
   const double gap = (qi - std::exp(weight_j) * site_j.normalized()).norm();
   const Vec3 normal = a.cross(b - a);

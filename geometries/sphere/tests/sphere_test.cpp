@@ -88,8 +88,8 @@ struct ConformanceTraits<Sphere> {
     Eigen::VectorXd masses(2);
     masses << chart_rectangle_area(c, -a, a, a), chart_rectangle_area(-a, -a, c, a);
     Sphere square = Sphere::polygon({{-a, -a, 1}, {a, -a, 1}, {a, a, 1}, {-a, a, 1}});
-    return {square, {Vec(s, 0, 1).normalized(), Vec(-s, 0, 1).normalized()}, masses,
-            std::log((1 - c * s) / (1 + c * s))};
+    return {
+        square, {Vec(s, 0, 1).normalized(), Vec(-s, 0, 1).normalized()}, masses, std::log((1 - c * s) / (1 + c * s))};
   }
   static ScalarField<Vec> smooth_density() {
     return [](const Vec& x) { return 1 + 0.5 * std::sin(3 * x.x()) * std::cos(2 * x.y()) + 0.3 * x.z(); };
@@ -145,7 +145,9 @@ INSTANTIATE_TYPED_TEST_SUITE_P(SpherePolygon, GeometryConformance, ::testing::Ty
 
 namespace {
 
-Eigen::VectorXd zeros(std::size_t n) { return Eigen::VectorXd::Zero(static_cast<Eigen::Index>(n)); }
+Eigen::VectorXd zeros(std::size_t n) {
+  return Eigen::VectorXd::Zero(static_cast<Eigen::Index>(n));
+}
 
 /// Off-diagonal facet weights by pair (i < j) of an evaluation.
 std::map<std::pair<int, int>, double> pair_weights(const Evaluation<Vec>& e) {
@@ -154,7 +156,9 @@ std::map<std::pair<int, int>, double> pair_weights(const Evaluation<Vec>& e) {
   return weights;
 }
 
-std::vector<Vec> octahedron() { return {Vec::UnitX(), -Vec::UnitX(), Vec::UnitY(), -Vec::UnitY(), Vec::UnitZ(), -Vec::UnitZ()}; }
+std::vector<Vec> octahedron() {
+  return {Vec::UnitX(), -Vec::UnitX(), Vec::UnitY(), -Vec::UnitY(), Vec::UnitZ(), -Vec::UnitZ()};
+}
 
 std::vector<Vec> cube() {
   std::vector<Vec> sites;
@@ -265,26 +269,26 @@ TEST(SphereClosedForms, VoronoiAreasGiveConstantHeights) {
 
 TEST(SphereIntegrals, ExactFormulasMatchHighOrderQuadrature) {
   for (std::size_t n : {8, 30, 3000, 100000}) {
-  const auto sites = random_sphere(n, 5);
-  Eigen::VectorXd weights(n);
-  std::mt19937_64 random(1);
-  std::uniform_real_distribution<double> uniform(-0.1 / n, 0.1 / n);
-  for (auto& w : weights) w = uniform(random);
-  const Sphere sphere;
-  double worst = 0;
-  const auto diagram = sphere.build_diagram(sites, weights);
-  const ScalarField<Vec> one = [](const Vec&) { return 1.0; };
-  for (std::size_t i = 0; i < sites.size(); ++i) {
-    if (diagram.cells[i].empty()) continue;
-    const auto exact = sphere.integrate(diagram.cells[i], sites[i]);
-    const auto quadrature = sphere.integrate(diagram.cells[i], sites[i], one, 30);
-    EXPECT_NEAR(exact.mass, quadrature.mass, 2e-14 * quadrature.mass);
-    EXPECT_NEAR((exact.first_moment - quadrature.first_moment).norm(), 0, 2e-13 * quadrature.mass);
-    EXPECT_NEAR(exact.cost, quadrature.cost, 1e-13 * quadrature.cost);
-    worst = std::max(worst, std::abs(exact.cost - quadrature.cost) / quadrature.cost);
-    if (n > 1000 && i > 300) break;
-  }
-  std::printf("  N = %zu: cost quadrature relative error %.2e\n", n, worst);
+    const auto sites = random_sphere(n, 5);
+    Eigen::VectorXd weights(n);
+    std::mt19937_64 random(1);
+    std::uniform_real_distribution<double> uniform(-0.1 / n, 0.1 / n);
+    for (auto& w : weights) w = uniform(random);
+    const Sphere sphere;
+    double worst = 0;
+    const auto diagram = sphere.build_diagram(sites, weights);
+    const ScalarField<Vec> one = [](const Vec&) { return 1.0; };
+    for (std::size_t i = 0; i < sites.size(); ++i) {
+      if (diagram.cells[i].empty()) continue;
+      const auto exact = sphere.integrate(diagram.cells[i], sites[i]);
+      const auto quadrature = sphere.integrate(diagram.cells[i], sites[i], one, 30);
+      EXPECT_NEAR(exact.mass, quadrature.mass, 2e-14 * quadrature.mass);
+      EXPECT_NEAR((exact.first_moment - quadrature.first_moment).norm(), 0, 2e-13 * quadrature.mass);
+      EXPECT_NEAR(exact.cost, quadrature.cost, 1e-13 * quadrature.cost);
+      worst = std::max(worst, std::abs(exact.cost - quadrature.cost) / quadrature.cost);
+      if (n > 1000 && i > 300) break;
+    }
+    std::printf("  N = %zu: cost quadrature relative error %.2e\n", n, worst);
   }
 }
 
@@ -502,13 +506,15 @@ TEST(SphereBadInput, HemisphereCondition) {
   // Strictly inside an open hemisphere, many sites.
   std::mt19937_64 random(1);
   const auto north = random_in(200, random, [](const Vec& v) { return v.z() > 0.05; });
-  EXPECT_EQ(input_error([&] { solve(Sphere(), UniformDensity{}, std::span(north), equal_masses(200)); })
-                .rfind("sites: all sites lie in a closed hemisphere", 0),
+  EXPECT_EQ(input_error([&] {
+              solve(Sphere(), UniformDensity{}, std::span(north), equal_masses(200));
+            }).rfind("sites: all sites lie in a closed hemisphere", 0),
             0u);
   // Fewer than 4 sites always lie in a closed hemisphere.
   const std::vector<Vec> three{Vec::UnitX(), Vec::UnitY(), -Vec(1, 1, 0).normalized()};
-  EXPECT_EQ(input_error([&] { solve(Sphere(), UniformDensity{}, std::span(three), equal_masses(3)); })
-                .rfind("sites: all sites lie in a closed hemisphere", 0),
+  EXPECT_EQ(input_error([&] {
+              solve(Sphere(), UniformDensity{}, std::span(three), equal_masses(3));
+            }).rfind("sites: all sites lie in a closed hemisphere", 0),
             0u);
   // A tetrahedron is fine.
   const std::vector<Vec> tetra{Vec(1, 1, 1), Vec(1, -1, -1), Vec(-1, 1, -1), Vec(-1, -1, 1)};
@@ -518,8 +524,9 @@ TEST(SphereBadInput, HemisphereCondition) {
 TEST(SphereBadInput, DomainNotCoveredBySites) {
   const Sphere cap = Sphere::cap(Vec::UnitZ(), 1.2);
   const std::vector<Vec> sites{Vec(1, 0, 0.05), Vec(0.9, 0.3, 0.1)};  // far side of the cap unseen
-  EXPECT_EQ(input_error([&] { solve(cap, UniformDensity{}, std::span(sites), equal_masses(2)); })
-                .rfind("sites: part of the source domain is at distance >= π/2 from every site", 0),
+  EXPECT_EQ(input_error([&] {
+              solve(cap, UniformDensity{}, std::span(sites), equal_masses(2));
+            }).rfind("sites: part of the source domain is at distance >= π/2 from every site", 0),
             0u);
 }
 
@@ -527,9 +534,13 @@ TEST(SphereBadInput, Domains) {
   EXPECT_EQ(input_error([] { Sphere::cap(Vec::UnitZ(), 2.0); }).rfind("domain.angle:", 0), 0u);
   EXPECT_EQ(input_error([] { Sphere::cap(Vec::Zero(), 0.5); }), "domain.center: is the zero vector");
   EXPECT_EQ(input_error([] { Sphere::polygon({{1, 0, 1}, {0, 1, 1}}); }).rfind("domain:", 0), 0u);
-  EXPECT_EQ(input_error([] { Sphere::polygon({{0, 0, 1}, {1, 0, 1}, {0.5, 0.1, 1}, {0.5, 1, 1}}); }),
+  EXPECT_EQ(input_error([] {
+              Sphere::polygon({{0, 0, 1}, {1, 0, 1}, {0.5, 0.1, 1}, {0.5, 1, 1}});
+            }),
             "domain[2]: polygon is not convex at this vertex");
-  EXPECT_EQ(input_error([] { Sphere::polygon({{1, 0, 0}, {0, 1, 0}, {-1, 0, 0}, {0, -1, 0}}); }).rfind("domain", 0),
+  EXPECT_EQ(input_error([] {
+              Sphere::polygon({{1, 0, 0}, {0, 1, 0}, {-1, 0, 0}, {0, -1, 0}});
+            }).rfind("domain", 0),
             0u);
 }
 

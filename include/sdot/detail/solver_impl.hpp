@@ -58,7 +58,7 @@ inline SparseMatrix assemble_hessian(Eigen::Index n, const std::vector<Eigen::Tr
 
 template <class S>
 class NewtonLinearSolver {
-public:
+ public:
   explicit NewtonLinearSolver(const Options& options) {
     if constexpr (requires(S s) { s.setTolerance(1.0); }) solver_.setTolerance(options.cg_tolerance);
   }
@@ -81,7 +81,7 @@ public:
   /// How many symbolic analyses were done (pattern reuse is visible in tests).
   [[nodiscard]] int analyses() const { return analyses_; }
 
-private:
+ private:
   bool same_pattern(const SparseMatrix& m) {
     const bool same = static_cast<Eigen::Index>(outer_.size()) == m.outerSize() + 1 &&
                       static_cast<Eigen::Index>(inner_.size()) == m.nonZeros() &&
@@ -110,8 +110,8 @@ inline void validate_targets(const Eigen::VectorXd& targets, std::size_t site_co
 template <sdot::Geometry G, sdot::Density<G> D>
 sdot::Evaluation<typename G::Point> sdot::evaluate(const G& geometry, const D& density,
                                                    std::span<const typename G::Point> sites,
-                                                   const Eigen::VectorXd& weights, bool with_hessian,
-                                                   Timings* timings, bool with_cost) {
+                                                   const Eigen::VectorXd& weights, bool with_hessian, Timings* timings,
+                                                   bool with_cost) {
   using Point = typename G::Point;
   auto start = detail::Clock::now();
   Evaluation<Point> result;
@@ -154,8 +154,7 @@ sdot::Evaluation<typename G::Point> sdot::evaluate(const G& geometry, const D& d
 template <sdot::LinearSolver S, sdot::Geometry G, sdot::Density<G> D>
 sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& density,
                                                  std::span<const typename G::Point> sites,
-                                                 const Eigen::VectorXd& target_masses,
-                                                 const Options& options,
+                                                 const Eigen::VectorXd& target_masses, const Options& options,
                                                  std::optional<Eigen::VectorXd> initial_weights) {
   using Point = typename G::Point;
   const auto start = detail::Clock::now();
@@ -172,8 +171,8 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
   if (user_weights) {
     weights = std::move(*initial_weights);
     if (weights.size() != n)
-      throw InputError("weights", "there are " + std::to_string(weights.size()) + " weights for " +
-                                      std::to_string(n) + " sites");
+      throw InputError("weights",
+                       "there are " + std::to_string(weights.size()) + " weights for " + std::to_string(n) + " sites");
     for (Eigen::Index i = 0; i < n; ++i)
       if (!std::isfinite(weights[i]))
         throw InputError(indexed("weights", static_cast<std::size_t>(i)), "is not finite");
@@ -248,13 +247,14 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
 
   for (int iteration = 1;; ++iteration) {
     if (error.max_relative <= options.tolerance)
-      return finish(Status::converged, "converged: max relative mass error " + detail::format_number(error.max_relative) +
+      return finish(Status::converged, "converged: max relative mass error " +
+                                           detail::format_number(error.max_relative) +
                                            " <= " + detail::format_number(options.tolerance));
     if (iteration > options.max_iterations)
-      return finish(Status::iteration_limit,
-                    "iteration limit (" + std::to_string(options.max_iterations) +
-                        ") reached with max relative mass error " + detail::format_number(error.max_relative) +
-                        " at site " + std::to_string(error.worst));
+      return finish(Status::iteration_limit, "iteration limit (" + std::to_string(options.max_iterations) +
+                                                 ") reached with max relative mass error " +
+                                                 detail::format_number(error.max_relative) + " at site " +
+                                                 std::to_string(error.worst));
     auto linear_start = detail::Clock::now();
     const SparseMatrix hessian = detail::assemble_hessian(n, current.facet_weights);
     Eigen::VectorXd rhs = targets - current.masses;

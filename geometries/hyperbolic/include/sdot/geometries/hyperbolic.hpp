@@ -28,7 +28,7 @@
 namespace sdot {
 
 class Hyperbolic {
-public:
+ public:
   /// A point of the hyperboloid (x₁, x₂, x₃), x₃ > 0, ⟨x, x⟩_M = −1.
   using Point = Eigen::Vector3d;
 
@@ -98,8 +98,7 @@ public:
   /// first moment ½ Σ_e L_e m_e (exact); cost ∫ ln(−⟨x, y⟩_M) dA by a collapsed Gauss rule on the
   /// centrally projected fan triangles, with an order chosen from the triangle's size
   /// (relative error ≲ 1e−13, see docs/hyperbolic.md).
-  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
-                                               bool with_cost = true) const;
+  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site, bool with_cost = true) const;
   /// ρ a function: order² points per centrally projected fan triangle,
   /// dA = |det(a, b, c)| / (−⟨X, X⟩_M)^{3/2} ds dt.
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
@@ -114,7 +113,7 @@ public:
   /// M / √(−⟨M, M⟩_M).
   [[nodiscard]] Point centroid(const CellIntegrals<Point>& integrals) const;
 
-private:
+ private:
   Hyperbolic() = default;
   void set_domain(std::vector<Point> vertices);
 

@@ -14,7 +14,7 @@
 namespace sdot {
 
 class Plane {
-public:
+ public:
   using Point = Eigen::Vector2d;
 
   /// The unit square [0, 1]².
@@ -34,8 +34,7 @@ public:
   [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
 
   /// Exact area, first moment and ∫|x − y|²/2 of a polygon.
-  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
-                                               bool with_cost = true) const;
+  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site, bool with_cost = true) const;
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
                                                const ScalarField<Point>& rho, int order) const;
   /// |ab| / |y_i − y_j|.
@@ -49,7 +48,7 @@ public:
     return integrals.first_moment / integrals.mass;
   }
 
-private:
+ private:
   ConvexPolygon domain_;
 };
 

@@ -30,7 +30,7 @@
 namespace sdot {
 
 class Sphere {
-public:
+ public:
   using Point = Eigen::Vector3d;
 
   enum class Domain { sphere, cap, polygon };
@@ -76,8 +76,7 @@ public:
 
   /// Exact area (Van Oosterom–Strackee), exact first moment (edge formula); the cost
   /// ∫ −ln⟨x, p⟩ dA by quadrature (no closed form), accurate to about 1e-13 relative.
-  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
-                                               bool with_cost = true) const;
+  [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site, bool with_cost = true) const;
   /// By quadrature over centrally projected fan triangles (`triangle_rule(order)`).
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
                                                const ScalarField<Point>& rho, int order) const;
@@ -98,7 +97,7 @@ public:
   /// Points along edge k of a cell (great or small circle), `count` ≥ 2 of them, ends included.
   [[nodiscard]] std::vector<Point> edge_points(const Cell<Point>& cell, std::size_t k, int count) const;
 
-private:
+ private:
   Diagram<Point> build_whole_sphere(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
   Diagram<Point> build_in_chart(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
 
