@@ -112,6 +112,14 @@ std::optional<Eigen::VectorXd> read_weights(const json& problem, std::size_t sit
   return weights;
 }
 
+void read_uniform_density(const json& problem, const std::string& supported) {
+  if (!problem.contains("density")) return;
+  const json& density = problem["density"];
+  check_known_fields(density, "density", {"type"});
+  if (!density.contains("type") || density["type"] != "uniform")
+    throw InputError("density.type", "unknown density type (supported: " + supported + ")");
+}
+
 double peak_rss_mb() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);

@@ -36,6 +36,9 @@ Eigen::VectorXd read_masses(const json& problem, std::size_t site_count);
 /// The optional initial weights.
 std::optional<Eigen::VectorXd> read_weights(const json& problem, std::size_t site_count);
 
+/// Checks the optional "density" field; only {"type": "uniform"} is supported by the command.
+void read_uniform_density(const json& problem, const std::string& supported = "\"uniform\"");
+
 /// Peak resident set size of this process in MB.
 double peak_rss_mb();
 
@@ -79,6 +82,21 @@ json result_json(const std::string& geometry, const Result<Point>& result) {
                        {"elapsed_s", r.elapsed_s}});
   out["history"] = std::move(history);
   return out;
+}
+
+/// Solves a parsed problem with the uniform density, its masses, options and initial weights,
+/// and fills the command's output (the picture through `draw` when asked for).
+template <class G, class Draw>
+SolveOutput solve_uniform_problem(const G& geometry, std::span<const typename G::Point> sites, const json& problem,
+                                  const RunContext& context, Draw&& draw) {
+  const Options options = read_options(problem, context.quiet);
+  const auto result = solve(geometry, UniformDensity{}, sites, read_masses(problem, sites.size()), options,
+                            read_weights(problem, sites.size()));
+  SolveOutput output;
+  output.result = result_json(std::string(G::name()), result);
+  output.converged = result.summary.usable();
+  if (context.want_svg) output.svg = draw(result);
+  return output;
 }
 
 /// The one-line JSON of `sdot bench`.

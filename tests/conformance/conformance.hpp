@@ -17,6 +17,7 @@
 #include <random>
 #include <vector>
 
+#include "sdot/error.hpp"
 #include "sdot/solver.hpp"
 
 namespace sdot::testing {
@@ -32,6 +33,17 @@ struct TwoSiteCase {
 
 template <class G>
 struct ConformanceTraits;
+
+/// The message of the InputError that `f()` throws, or "(no InputError)".
+template <class F>
+std::string input_error(F&& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no InputError)";
+}
 
 /// Central finite differences of the masses with respect to the weights, column j.
 template <class G, class D>

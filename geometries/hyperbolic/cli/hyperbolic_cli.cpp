@@ -155,26 +155,18 @@ SolveOutput solve_hyperbolic(const json& problem, const RunContext& context) {
   if (!problem.contains("sites")) throw InputError("sites", "missing");
   const auto sites = to_points(read_points(problem["sites"], "sites", dimension(sites_model)), sites_model, "sites");
   if (sites.empty()) throw InputError("sites", "at least one site is needed");
-  if (problem.contains("density")) {
-    const json& density = problem["density"];
-    check_known_fields(density, "density", {"type"});
-    if (!density.contains("type") || density["type"] != "uniform")
-      throw InputError("density.type", "unknown density type (supported: \"uniform\", the hyperbolic area)");
-  }
-  const Options options = read_options(problem, context.quiet);
-  const auto result = solve(geometry, UniformDensity{}, std::span<const Point>(sites),
-                            read_masses(problem, sites.size()), options, read_weights(problem, sites.size()));
-  SolveOutput output;
-  output.result = result_json("hyperbolic", result);  // centroids: hyperboloid coordinates
+  read_uniform_density(problem, "\"uniform\", the hyperbolic area");
+  SolveOutput output = solve_uniform_problem(geometry, std::span<const Point>(sites), problem, context,
+                                             [&](const Result<Point>& result) { return draw(geometry, sites, result); });
+  // Centroids are hyperboloid points; also give them in the sites' model.
   output.result["sites_model"] = model_name(sites_model);
   if (sites_model != Model::hyperboloid) {
     json centroids = json::array();
-    for (const auto& c : result.centroids) centroids.push_back(point_in(sites_model, c));
+    for (const auto& c : output.result["centroids"])
+      centroids.push_back(point_in(sites_model, Point(c[0].get<double>(), c[1].get<double>(), c[2].get<double>())));
     output.result[std::string("centroids_") + model_name(sites_model)] = std::move(centroids);
   }
   output.result["domain_area"] = geometry.domain_area();
-  output.converged = result.summary.converged();
-  if (context.want_svg) output.svg = draw(geometry, sites, result);
   return output;
 }
 
@@ -206,13 +198,7 @@ json bench_hyperbolic(const BenchRequest& request) {
   std::mt19937_64 random(request.seed);
   const Hyperbolic geometry = bench_domain();
   const auto sites = uniform_sites(geometry, request.n, random);
-  Options options;
-  options.tolerance = request.tolerance;
-  if (!request.quiet)
-    options.callback = [](const IterationRecord& r) {
-      std::fprintf(stderr, "  iteration %3d  max rel. error %9.3e  step %-9g %8.3f s\n", r.iteration,
-                   r.max_relative_error, r.step, r.elapsed_s);
-    };
+  const Options options = bench_options(request);
   const auto result =
       solve(geometry, UniformDensity{}, std::span<const Point>(sites), equal_masses(request.n), options);
   return bench_json("hyperbolic", request.n, result);

@@ -85,15 +85,6 @@ INSTANTIATE_TYPED_TEST_SUITE_P(Hyperbolic, GeometryConformance, ::testing::Types
 
 namespace {
 
-template <class F>
-std::string input_error(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "(no InputError)";
-}
 
 Cell<Point> cell_of(const std::vector<Eigen::Vector2d>& klein) {
   Cell<Point> cell;

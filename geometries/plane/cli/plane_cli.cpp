@@ -47,20 +47,9 @@ SolveOutput solve_plane(const json& problem, const RunContext& context) {
     std::vector<Eigen::Vector2d> vertices = to_points(read_points(problem["domain"], "domain", 2));
     plane = Plane(ConvexPolygon(std::move(vertices), "domain"));
   }
-  if (problem.contains("density")) {
-    const json& density = problem["density"];
-    check_known_fields(density, "density", {"type"});
-    if (!density.contains("type") || density["type"] != "uniform")
-      throw InputError("density.type", "unknown density type (supported: \"uniform\")");
-  }
-  const Options options = read_options(problem, context.quiet);
-  const auto result = solve(plane, UniformDensity{}, std::span<const Point>(sites), read_masses(problem, sites.size()),
-                            options, read_weights(problem, sites.size()));
-  SolveOutput output;
-  output.result = result_json("plane", result);
-  output.converged = result.summary.usable();
-  if (context.want_svg) output.svg = draw(plane, sites, result);
-  return output;
+  read_uniform_density(problem);
+  return solve_uniform_problem(plane, std::span<const Point>(sites), problem, context,
+                               [&](const Result<Point>& result) { return draw(plane, sites, result); });
 }
 
 json bench_plane(const BenchRequest& request) {

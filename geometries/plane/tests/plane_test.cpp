@@ -221,15 +221,6 @@ TEST(Plane, CallbackSeesEveryIteration) {
 
 // ---- bad input -------------------------------------------------------------------------
 
-template <class F>
-std::string input_error(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "(no InputError)";
-}
 
 TEST(PlaneBadInput, NonFiniteCoordinates) {
   std::vector<Plane::Point> sites{{0.1, 0.1}, {NAN, 0.5}, {0.9, 0.9}};

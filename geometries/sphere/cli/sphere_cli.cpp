@@ -162,20 +162,9 @@ SolveOutput solve_sphere(const json& problem, const RunContext& context) {
     else
       throw InputError("builder", "must be \"automatic\", \"clipping\" or \"hull\"");
   }
-  if (problem.contains("density")) {
-    const json& density = problem["density"];
-    check_known_fields(density, "density", {"type"});
-    if (!density.contains("type") || density["type"] != "uniform")
-      throw InputError("density.type", "unknown density type (supported: \"uniform\")");
-  }
-  const Options options = read_options(problem, context.quiet);
-  const auto result = solve(sphere, UniformDensity{}, std::span<const Point>(sites), read_masses(problem, sites.size()),
-                            options, read_weights(problem, sites.size()));
-  SolveOutput output;
-  output.result = result_json("sphere", result);
-  output.converged = result.summary.converged();
-  if (context.want_svg) output.svg = draw(sphere, sites, result);
-  return output;
+  read_uniform_density(problem);
+  return solve_uniform_problem(sphere, std::span<const Point>(sites), problem, context,
+                               [&](const Result<Point>& result) { return draw(sphere, sites, result); });
 }
 
 std::vector<Point> uniform_sites(std::size_t n, unsigned seed) {
@@ -192,13 +181,7 @@ std::vector<Point> uniform_sites(std::size_t n, unsigned seed) {
 
 json bench_sphere(const BenchRequest& request) {
   const auto sites = uniform_sites(request.n, request.seed);
-  Options options;
-  options.tolerance = request.tolerance;
-  if (!request.quiet)
-    options.callback = [](const IterationRecord& r) {
-      std::fprintf(stderr, "  iteration %3d  max rel. error %9.3e  step %-9g %8.3f s\n", r.iteration,
-                   r.max_relative_error, r.step, r.elapsed_s);
-    };
+  const Options options = bench_options(request);
   const Sphere sphere;
   const auto result =
       solve(sphere, UniformDensity{}, std::span<const Point>(sites), equal_masses(request.n, 4 * pi), options);

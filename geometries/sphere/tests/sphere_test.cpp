@@ -464,15 +464,6 @@ TEST(SphereSolver, SitesInOneHemisphereOfACap) {
 
 // ---- bad input -------------------------------------------------------------------------
 
-template <class F>
-std::string input_error(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "(no InputError)";
-}
 
 TEST(SphereBadInput, ZeroVector) {
   auto sites = random_sphere(10, 1);
