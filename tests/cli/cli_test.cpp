@@ -159,7 +159,17 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"unknown_density", R"({"geometry": "plane", "sites": [[0.1,0.1]], "density": {"type": "image"}})",
                  "density.type: unknown density type"},
         BadInput{"empty_sites", R"({"geometry": "plane", "sites": []})", "sites: at least one site is needed"},
-        BadInput{"not_object", R"([1, 2, 3])", "the problem must be a JSON object"}),
+        BadInput{"not_object", R"([1, 2, 3])", "the problem must be a JSON object"},
+        BadInput{"hyperbolic_without_domain", R"({"geometry": "hyperbolic", "sites": [[0.1,0.1],[0.2,0.3]]})",
+                 "domain: missing"},
+        BadInput{"hyperbolic_ideal_point",
+                 R"({"geometry": "hyperbolic", "domain": {"model": "klein", "vertices": [[0,0],[0.5,0],[0.2,1.2]]},
+                     "sites": [[0.1,0.1]]})",
+                 "domain[2]: Klein point lies on or outside the ideal boundary"},
+        BadInput{"sphere_hemisphere", R"({"geometry": "sphere", "sites": [[0,0,1],[0,1,1],[1,0,1],[1,1,1]]})",
+                 "sites: all sites lie in a closed hemisphere"},
+        BadInput{"sphere_zero_site", R"({"geometry": "sphere", "sites": [[0,0,1],[0,0,0],[1,0,-1],[-1,0,-1]]})",
+                 "sites[1]"}),
     [](const ::testing::TestParamInfo<BadInput>& param_info) { return std::string(param_info.param.name); });
 
 TEST(Cli, UsageErrors) {
@@ -189,9 +199,19 @@ TEST(Cli, DemoWritesResultsAndPictures) {
   const auto out = scratch() / "demo_out";
   const auto r = run("demo --quiet --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_TRUE(fs::exists(out / "plane_result.json"));
-  EXPECT_TRUE(fs::exists(out / "plane_diagram.svg"));
-  EXPECT_EQ(json::parse(slurp(out / "plane_result.json"))["status"], "converged");
+  for (const std::string geometry : {"plane", "sphere", "hyperbolic"}) {
+    EXPECT_TRUE(fs::exists(out / (geometry + "_problem.json"))) << geometry;
+    EXPECT_EQ(slurp(out / (geometry + "_diagram.svg")).rfind("<svg", 0), 0u) << geometry;
+    EXPECT_EQ(json::parse(slurp(out / (geometry + "_result.json")))["status"], "converged") << geometry;
+  }
+}
+
+TEST(Cli, BenchEveryGeometry) {
+  for (const std::string geometry : {"sphere", "hyperbolic"}) {
+    const auto r = run("bench --geometry " + geometry + " --n 300 --quiet");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(json::parse(r.out)["geometry"], geometry);
+  }
 }
 
 }  // namespace
