@@ -171,10 +171,29 @@ TEST(Plane, SymbolicFactorisationIsReusedWhileThePatternHolds) {
   const SparseMatrix hessian = detail::assemble_hessian(200, evaluation.facet_weights);
   detail::NewtonLinearSolver<DefaultLinearSolver> linear{Options{}};
   Eigen::VectorXd rhs = Eigen::VectorXd::LinSpaced(200, -1, 1), direction;
+  rhs.array() -= rhs.mean();
   ASSERT_TRUE(linear.solve(hessian, rhs, direction));
   ASSERT_TRUE(linear.solve(SparseMatrix(2 * hessian), rhs, direction));
   EXPECT_EQ(linear.analyses(), 1);
   EXPECT_LT((hessian * direction * 2 - rhs).norm(), 1e-10 * rhs.norm());
+  // A changed pattern needs a new analysis.
+  auto weights = evaluation.facet_weights;
+  weights.emplace_back(0, 199, 0.5);
+  const SparseMatrix larger = detail::assemble_hessian(200, weights);
+  ASSERT_TRUE(linear.solve(larger, rhs, direction));
+  EXPECT_EQ(linear.analyses(), 2);
+  EXPECT_LT((larger * direction - rhs).norm(), 1e-10 * rhs.norm());
+}
+
+TEST(Plane, ConjugateGradientSolverKeepsItsMatrixAlive) {
+  const auto sites = random_unit_square(100, 6);
+  const auto evaluation = evaluate(Plane(), UniformDensity{}, std::span(sites), Eigen::VectorXd::Zero(100), true);
+  detail::NewtonLinearSolver<ConjugateGradientSolver> linear{Options{}};
+  Eigen::VectorXd rhs = Eigen::VectorXd::LinSpaced(100, -1, 1), direction;
+  rhs.array() -= rhs.mean();
+  const SparseMatrix hessian = detail::assemble_hessian(100, evaluation.facet_weights);
+  ASSERT_TRUE(linear.solve(hessian, rhs, direction));
+  EXPECT_LT((hessian * direction - rhs).norm(), 1e-8 * rhs.norm());
 }
 
 TEST(Plane, IterationLimitIsAStatusNotAnError) {
