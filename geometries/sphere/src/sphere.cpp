@@ -609,6 +609,12 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
           if (static_cast<std::size_t>(j) != i)
             candidates.emplace_back((p[static_cast<std::size_t>(j)] - p[i]).squaredNorm(), j);
         });
+      // The nearest few bound the cell almost always; the certification below adds any other.
+      constexpr std::size_t seeds = 16;
+      if (candidates.size() > seeds) {
+        std::nth_element(candidates.begin(), candidates.begin() + seeds, candidates.end());
+        candidates.resize(seeds);
+      }
       std::sort(candidates.begin(), candidates.end());
       double half = initial_half;
       ChartCell cell;
