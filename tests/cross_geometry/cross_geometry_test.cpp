@@ -185,24 +185,8 @@ struct SphereCase {
 
 struct HyperbolicCase {
   static Hyperbolic geometry() { return Hyperbolic::regular_polygon(6, 1.2); }
-  // Uniform in hyperbolic area: rejection sampling of Klein points with density (1 − |k|²)^(−3/2).
   static std::vector<Vec3> sample(std::size_t m, std::mt19937_64& random) {
-    const auto g = geometry();
-    std::vector<Vec2> corners;
-    double reach = 0;
-    for (const auto& v : g.domain())
-      corners.push_back(Hyperbolic::to_klein(v)), reach = std::max(reach, corners.back().norm());
-    const ConvexPolygon polygon(corners);
-    const double bound = std::pow(1 - reach * reach, -1.5);
-    std::uniform_real_distribution<double> uniform(-reach, reach), unit(0, 1);
-    std::vector<Vec3> points;
-    while (points.size() < m) {
-      const Vec2 k(uniform(random), uniform(random));
-      if (!polygon.contains(k) || k.norm() >= reach) continue;
-      if (unit(random) * bound <= std::pow(1 - k.squaredNorm(), -1.5))
-        points.push_back(Vec3(k.x(), k.y(), 1) / std::sqrt(1 - k.squaredNorm()));
-    }
-    return points;
+    return geometry().uniform_samples(m, random());
   }
   static const char* name() { return "hyperbolic"; }
 };

@@ -156,8 +156,9 @@ SolveOutput solve_hyperbolic(const json& problem, const RunContext& context) {
   const auto sites = to_points(read_points(problem["sites"], "sites", dimension(sites_model)), sites_model, "sites");
   if (sites.empty()) throw InputError("sites", "at least one site is needed");
   read_uniform_density(problem, "\"uniform\", the hyperbolic area");
-  SolveOutput output = solve_uniform_problem(geometry, std::span<const Point>(sites), problem, context,
-                                             [&](const Result<Point>& result) { return draw(geometry, sites, result); });
+  SolveOutput output =
+      solve_uniform_problem(geometry, std::span<const Point>(sites), problem, context,
+                            [&](const Result<Point>& result) { return draw(geometry, sites, result); });
   // Centroids are hyperboloid points; also give them in the sites' model.
   output.result["sites_model"] = model_name(sites_model);
   if (sites_model != Model::hyperboloid) {
@@ -178,26 +179,9 @@ Hyperbolic bench_domain() {
   return Hyperbolic::regular_polygon(8, 1.5, Hyperbolic::polar(2, 0));
 }
 
-/// `n` sites uniform in hyperbolic area over the domain.
-std::vector<Point> uniform_sites(const Hyperbolic& geometry, std::size_t n, std::mt19937_64& random) {
-  const auto& chart = geometry.chart_domain();
-  const double r = chart.radius();
-  const double max_jacobian = std::pow(1 - r * r, -1.5);
-  std::uniform_real_distribution<double> uniform(-r, r), unit(0, 1);
-  std::vector<Point> sites;
-  sites.reserve(n);
-  while (sites.size() < n) {
-    const Eigen::Vector2d k(uniform(random), uniform(random));
-    if (!chart.contains(k) || unit(random) * max_jacobian > std::pow(1 - k.squaredNorm(), -1.5)) continue;
-    sites.push_back(geometry.boost() * Hyperbolic::from_klein(k));
-  }
-  return sites;
-}
-
 json bench_hyperbolic(const BenchRequest& request) {
-  std::mt19937_64 random(request.seed);
   const Hyperbolic geometry = bench_domain();
-  const auto sites = uniform_sites(geometry, request.n, random);
+  const auto sites = geometry.uniform_samples(request.n, request.seed);
   const Options options = bench_options(request);
   const auto result =
       solve(geometry, UniformDensity{}, std::span<const Point>(sites), equal_masses(request.n), options);
@@ -213,8 +197,7 @@ json demo_hyperbolic() {
     hexagon.push_back(Eigen::Vector2d(0.82 * std::cos(angle), 0.82 * std::sin(angle)));
   }
   const Hyperbolic geometry = Hyperbolic::from_model(Model::poincare, hexagon);
-  std::mt19937_64 random(7);
-  const auto sites = uniform_sites(geometry, 800, random);
+  const auto sites = geometry.uniform_samples(800, 7);
   json domain = json::array(), points = json::array(), masses = json::array();
   for (const auto& v : hexagon) domain.push_back(point_json(v));
   for (const auto& s : sites) {

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <numbers>
 #include <numeric>
+#include <random>
 
 #include "sdot/error.hpp"
 #include "sdot/quadrature.hpp"
@@ -382,6 +383,21 @@ double Hyperbolic::facet_weight(const Point& a, const Point& b, const Point& sit
 
 Hyperbolic::Point Hyperbolic::centroid(const CellIntegrals<Point>& integrals) const {
   return normalize(integrals.first_moment);
+}
+
+std::vector<Hyperbolic::Point> Hyperbolic::uniform_samples(std::size_t count, std::uint64_t seed) const {
+  std::mt19937_64 random(seed);
+  const double r = chart_domain_.radius();
+  const double max_jacobian = std::pow(1 - r * r, -1.5);
+  std::uniform_real_distribution<double> uniform(-r, r), unit(0, 1);
+  std::vector<Point> samples;
+  samples.reserve(count);
+  while (samples.size() < count) {
+    const Eigen::Vector2d k(uniform(random), uniform(random));
+    if (!chart_domain_.contains(k) || unit(random) * max_jacobian > std::pow(1 - k.squaredNorm(), -1.5)) continue;
+    samples.push_back(boost_ * from_klein(k));
+  }
+  return samples;
 }
 
 }  // namespace sdot

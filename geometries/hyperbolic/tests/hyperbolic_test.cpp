@@ -15,20 +15,9 @@ namespace sdot::testing {
 namespace {
 using Point = Hyperbolic::Point;
 
-/// Sites uniform in hyperbolic area over the geometry's domain (rejection in the re-centred chart).
+/// Sites uniform in hyperbolic area over the geometry's domain.
 std::vector<Point> random_sites_in(const Hyperbolic& g, std::size_t n, std::mt19937_64& random) {
-  const auto& chart = g.chart_domain();
-  const double r = chart.radius();
-  const double max_jacobian = std::pow(1 - r * r, -1.5);
-  std::uniform_real_distribution<double> uniform(-r, r), unit(0, 1);
-  std::vector<Point> sites;
-  while (sites.size() < n) {
-    const Eigen::Vector2d k(uniform(random), uniform(random));
-    if (!chart.contains(k)) continue;
-    if (unit(random) * max_jacobian > std::pow(1 - k.squaredNorm(), -1.5)) continue;
-    sites.push_back(g.boost() * Hyperbolic::from_klein(k));
-  }
-  return sites;
+  return g.uniform_samples(n, random());
 }
 
 /// Area of a geodesic polygon by the angle defect (n − 2)π − Σα (independent of the VOS formula).
@@ -85,7 +74,6 @@ INSTANTIATE_TYPED_TEST_SUITE_P(Hyperbolic, GeometryConformance, ::testing::Types
 
 namespace {
 
-
 Cell<Point> cell_of(const std::vector<Eigen::Vector2d>& klein) {
   Cell<Point> cell;
   for (const auto& k : klein) cell.vertices.push_back(Hyperbolic::from_klein(k));
@@ -97,6 +85,19 @@ Cell<Point> cell_of(const std::vector<Eigen::Vector2d>& klein) {
 CellIntegrals<Point> reference_integrals(const Hyperbolic& g, const Cell<Point>& cell, const Point& site) {
   return g.integrate(
       cell, site, [](const Point&) { return 1.0; }, 40);
+}
+
+TEST(Hyperbolic, UniformSamplesFollowTheHyperbolicArea) {
+  // The samples' mean must be the domain's exact first moment over its area (Monte Carlo).
+  const Hyperbolic g = Hyperbolic::regular_polygon(6, 1.2, Hyperbolic::polar(1.0, 0.5));
+  Cell<Point> whole{g.domain(), std::vector<int>(g.domain().size(), -1)};
+  const auto exact = g.integrate(whole, g.center());
+  const auto samples = g.uniform_samples(40000, 3);
+  Point mean = Point::Zero();
+  for (const auto& x : samples) mean += x / static_cast<double>(samples.size());
+  const Point expected = exact.first_moment / exact.mass;
+  EXPECT_LT((mean - expected).norm(), 0.02 * expected.norm()) << mean.transpose() << " vs " << expected.transpose();
+  EXPECT_EQ(samples.front(), g.uniform_samples(1, 3).front());  // deterministic per seed
 }
 
 TEST(Hyperbolic, CoordinateConversions) {

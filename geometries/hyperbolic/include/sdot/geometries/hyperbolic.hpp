@@ -16,6 +16,7 @@
 ///   hyperboloid x itself (checked to satisfy ⟨x, x⟩_M = −1 to 1e−9 relative, then re-projected).
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <span>
 #include <string>
 #include <string_view>
@@ -83,6 +84,9 @@ class Hyperbolic {
   [[nodiscard]] const ConvexPolygon& chart_domain() const { return chart_domain_; }
   /// The hyperbolic area of the domain (exact).
   [[nodiscard]] double domain_area() const;
+  /// `count` points uniform in hyperbolic area over the domain (rejection sampling in the
+  /// re-centred Klein chart, whose area element is dk / (1 − |k|²)^{3/2}); deterministic per seed.
+  [[nodiscard]] std::vector<Point> uniform_samples(std::size_t count, std::uint64_t seed) const;
 
   [[nodiscard]] static double cost(const Point& x, const Point& y);
   /// Throws InputError naming `sites[i]` for a non-finite coordinate, a point off the
