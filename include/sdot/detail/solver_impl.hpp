@@ -147,6 +147,10 @@ sdot::Evaluation<typename G::Point> sdot::evaluate(const G& geometry, const D& d
 #pragma omp critical
     result.facet_weights.insert(result.facet_weights.end(), local.begin(), local.end());
   }
+  // Threads append in any order; sorting makes the Hessian, hence every result, reproducible.
+  std::sort(result.facet_weights.begin(), result.facet_weights.end(), [](const auto& a, const auto& b) {
+    return a.row() < b.row() || (a.row() == b.row() && a.col() < b.col());
+  });
   if (timings) timings->assembly_s += detail::seconds_since(start);
   return result;
 }
