@@ -14,8 +14,19 @@ double cross(const Vec2& a, const Vec2& b) {
 }
 }  // namespace
 
-Plane::Plane() : domain_(ConvexPolygon::rectangle(0, 0, 1, 1)) {}
-Plane::Plane(ConvexPolygon domain) : domain_(std::move(domain)) {}
+Plane::Plane() : domain_(ConvexPolygon::rectangle(0, 0, 1, 1)) {
+  set_chart();
+}
+Plane::Plane(ConvexPolygon domain) : domain_(std::move(domain)) {
+  set_chart();
+}
+
+void Plane::set_chart() {
+  chart_origin_ = domain_.centroid();
+  chart_scale_ = 0;
+  for (const auto& v : domain_.vertices()) chart_scale_ = std::max(chart_scale_, (v - chart_origin_).norm());
+  if (!(chart_scale_ > 0)) chart_scale_ = 1;
+}
 
 void Plane::validate_sites(std::span<const Point> sites) const {
   for (std::size_t i = 0; i < sites.size(); ++i)

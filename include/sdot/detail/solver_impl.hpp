@@ -3,6 +3,7 @@
 
 #include <Eigen/SparseCore>
 #include <cstdio>
+#include <exception>
 
 namespace sdot::detail {
 
@@ -95,6 +96,36 @@ class NewtonLinearSolver {
   int analyses_ = 0;
 };
 
+/// ρ_t = a·ρ + b (b uniform): the continuation density for sources that vanish on part of the domain.
+template <class D>
+struct BlendedDensity {
+  const D& density;
+  double density_factor;
+  double uniform_level;
+  template <class G>
+  [[nodiscard]] CellIntegrals<typename G::Point> integrate_cell(const G& geometry, const Cell<typename G::Point>& cell,
+                                                                const typename G::Point& site,
+                                                                bool with_cost = true) const {
+    auto result = density.integrate_cell(geometry, cell, site, with_cost);
+    const auto uniform = geometry.integrate(cell, site, with_cost);
+    result.mass = density_factor * result.mass + uniform_level * uniform.mass;
+    result.first_moment = density_factor * result.first_moment + uniform_level * uniform.first_moment;
+    result.cost = density_factor * result.cost + uniform_level * uniform.cost;
+    return result;
+  }
+  template <class G>
+  [[nodiscard]] double facet_weight(const G& geometry, const typename G::Point& a, const typename G::Point& b,
+                                    const typename G::Point& site_i, double weight_i, const typename G::Point& site_j,
+                                    double weight_j) const {
+    return density_factor * density.facet_weight(geometry, a, b, site_i, weight_i, site_j, weight_j) +
+           uniform_level * geometry.facet_weight(a, b, site_i, weight_i, site_j, weight_j);
+  }
+};
+
+inline bool usable_status(Status status) {
+  return status == Status::converged || status == Status::precision_floor;
+}
+
 inline void validate_targets(const Eigen::VectorXd& targets, std::size_t site_count) {
   if (static_cast<std::size_t>(targets.size()) != site_count)
     throw InputError("masses", "there are " + std::to_string(targets.size()) + " masses for " +
@@ -121,32 +152,39 @@ sdot::Evaluation<typename G::Point> sdot::evaluate(const G& geometry, const D& d
   const auto n = static_cast<std::ptrdiff_t>(sites.size());
   result.integrals.resize(sites.size());
   result.masses.resize(n);
+  // Densities may reject their input (InputError) from inside the parallel loop; exceptions
+  // cannot leave an OpenMP region, so the first one is carried out and rethrown.
+  std::exception_ptr failure;
 #pragma omp parallel
   {
     std::vector<Eigen::Triplet<double>> local;
 #pragma omp for schedule(dynamic, 256) nowait
-    for (std::ptrdiff_t i = 0; i < n; ++i) {
-      const auto& cell = result.diagram.cells[i];
-      if (cell.empty()) {
-        result.integrals[i] = CellIntegrals<Point>{};
-        result.masses[i] = 0;
-        continue;
+    for (std::ptrdiff_t i = 0; i < n; ++i) try {
+        const auto& cell = result.diagram.cells[i];
+        if (cell.empty()) {
+          result.integrals[i] = CellIntegrals<Point>{};
+          result.masses[i] = 0;
+          continue;
+        }
+        result.integrals[i] = density.integrate_cell(geometry, cell, sites[i], with_cost);
+        result.masses[i] = result.integrals[i].mass;
+        if (!with_hessian) continue;
+        for (std::size_t k = 0; k < cell.size(); ++k) {
+          const int j = cell.neighbors[k];
+          if (is_boundary(j) || j <= i) continue;  // each pair once, from the lower index
+          const Point& a = cell.vertices[k];
+          const Point& b = cell.vertices[(k + 1) % cell.size()];
+          const double w = density.facet_weight(geometry, a, b, sites[i], weights[i], sites[j], weights[j]);
+          if (w != 0) local.emplace_back(static_cast<int>(i), j, w);
+        }
+      } catch (...) {
+#pragma omp critical
+        if (!failure) failure = std::current_exception();
       }
-      result.integrals[i] = density.integrate_cell(geometry, cell, sites[i], with_cost);
-      result.masses[i] = result.integrals[i].mass;
-      if (!with_hessian) continue;
-      for (std::size_t k = 0; k < cell.size(); ++k) {
-        const int j = cell.neighbors[k];
-        if (is_boundary(j) || j <= i) continue;  // each pair once, from the lower index
-        const Point& a = cell.vertices[k];
-        const Point& b = cell.vertices[(k + 1) % cell.size()];
-        const double w = density.facet_weight(geometry, a, b, sites[i], weights[i], sites[j], weights[j]);
-        if (w != 0) local.emplace_back(static_cast<int>(i), j, w);
-      }
-    }
 #pragma omp critical
     result.facet_weights.insert(result.facet_weights.end(), local.begin(), local.end());
   }
+  if (failure) std::rethrow_exception(failure);
   // Threads append in any order; sorting makes the Hessian, hence every result, reproducible.
   std::sort(result.facet_weights.begin(), result.facet_weights.end(), [](const auto& a, const auto& b) {
     return a.row() < b.row() || (a.row() == b.row() && a.col() < b.col());
@@ -198,7 +236,7 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
 
   Eigen::Index first_empty = -1;
   for (Eigen::Index i = 0; i < n && first_empty < 0; ++i)
-    if (!(current.masses[i] > 0)) first_empty = i;
+    if (current.diagram.cells[static_cast<std::size_t>(i)].empty()) first_empty = i;
   auto finish = [&](Status status, std::string message) {
     summary.status = status;
     summary.message = std::move(message);
@@ -230,10 +268,10 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
                   "the cell of site " + std::to_string(first_empty) + " is empty at the default start");
   }
 
-  const double epsilon0 = 0.5 * std::min(current.masses.minCoeff(), targets.minCoeff());
   detail::NewtonLinearSolver<S> linear(options);
-  auto error = detail::mass_error(current.masses, targets);
-  auto record = [&](int iteration, double step) {
+  detail::MassError error;
+  int iteration = 0;
+  auto record = [&](double step) {
     IterationRecord r{iteration, error.max_relative, error.rms_relative, step, detail::seconds_since(start)};
     summary.history.push_back(r);
     summary.iterations = iteration;
@@ -241,65 +279,114 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
     summary.rms_relative_error = error.rms_relative;
     if (options.callback) options.callback(r);
   };
-  record(0, 0);
-  int small_steps = 0;  // consecutive heavily damped steps near the solution
   auto floor_message = [&] {
     return "stopped at the precision floor: max relative mass error " + detail::format_number(error.max_relative) +
            " (tolerance " + detail::format_number(options.tolerance) +
            " is below what double precision reaches for this problem)";
   };
+  // Damped Newton (KMT) for `source` from the current weights down to `tolerance`; `current`
+  // must hold the evaluation of `source` at `weights`.
+  auto newton = [&](const auto& source, double tolerance) -> std::pair<Status, std::string> {
+    const double epsilon0 = 0.5 * std::min(current.masses.minCoeff(), targets.minCoeff());
+    error = detail::mass_error(current.masses, targets);
+    record(0);
+    int small_steps = 0;  // consecutive heavily damped steps near the solution
+    for (;;) {
+      if (error.max_relative <= tolerance)
+        return {Status::converged, "converged: max relative mass error " + detail::format_number(error.max_relative) +
+                                       " <= " + detail::format_number(tolerance)};
+      if (iteration >= options.max_iterations)
+        return {Status::iteration_limit, "iteration limit (" + std::to_string(options.max_iterations) +
+                                             ") reached with max relative mass error " +
+                                             detail::format_number(error.max_relative) + " at site " +
+                                             std::to_string(error.worst)};
+      ++iteration;
+      auto linear_start = detail::Clock::now();
+      const SparseMatrix hessian = detail::assemble_hessian(n, current.facet_weights);
+      Eigen::VectorXd rhs = targets - current.masses;
+      // Σ rhs = Σν − Σμ is zero up to summation round-off (~1e-13 for 10⁴ cells); spread it evenly
+      // (putting it on the pinned site would cap that site's accuracy at ~1e-9).
+      rhs.array() -= rhs.mean();
+      Eigen::VectorXd direction;
+      const bool solved = linear.solve(hessian, rhs, direction);
+      summary.timings.linear_solve_s += detail::seconds_since(linear_start);
+      if (!solved)
+        return {Status::linear_solve_failure,
+                "the Newton system could not be solved (is the cell adjacency graph, or the density's support, "
+                "disconnected?)"};
 
-  for (int iteration = 1;; ++iteration) {
-    if (error.max_relative <= options.tolerance)
-      return finish(Status::converged, "converged: max relative mass error " +
-                                           detail::format_number(error.max_relative) +
-                                           " <= " + detail::format_number(options.tolerance));
-    if (iteration > options.max_iterations)
-      return finish(Status::iteration_limit, "iteration limit (" + std::to_string(options.max_iterations) +
-                                                 ") reached with max relative mass error " +
-                                                 detail::format_number(error.max_relative) + " at site " +
-                                                 std::to_string(error.worst));
-    auto linear_start = detail::Clock::now();
-    const SparseMatrix hessian = detail::assemble_hessian(n, current.facet_weights);
-    Eigen::VectorXd rhs = targets - current.masses;
-    // Σ rhs = Σν − Σμ is zero up to summation round-off (~1e-13 for 10⁴ cells); spread it evenly
-    // (putting it on the pinned site would cap that site's accuracy at ~1e-9).
-    rhs.array() -= rhs.mean();
-    Eigen::VectorXd direction;
-    const bool solved = linear.solve(hessian, rhs, direction);
-    summary.timings.linear_solve_s += detail::seconds_since(linear_start);
-    if (!solved)
-      return finish(Status::linear_solve_failure,
-                    "the Newton system could not be solved (is the cell adjacency graph disconnected?)");
-
-    bool accepted = false;
-    double step = 1;
-    for (int halving = 0; halving <= options.max_step_halvings; ++halving, step /= 2) {
-      Eigen::VectorXd trial_weights = weights + step * direction;
-      trial_weights.array() -= trial_weights.mean();
-      Evaluation<Point> trial = evaluate(geometry, density, sites, trial_weights, true, &summary.timings, false);
-      if (trial.masses.minCoeff() < epsilon0) continue;
-      const auto trial_error = detail::mass_error(trial.masses, targets);
-      if (trial_error.l2 <= (1 - step / 2) * error.l2) {
-        weights = std::move(trial_weights);
-        current = std::move(trial);
-        error = trial_error;
-        accepted = true;
-        break;
+      bool accepted = false;
+      double step = 1;
+      for (int halving = 0; halving <= options.max_step_halvings; ++halving, step /= 2) {
+        Eigen::VectorXd trial_weights = weights + step * direction;
+        trial_weights.array() -= trial_weights.mean();
+        Evaluation<Point> trial = evaluate(geometry, source, sites, trial_weights, true, &summary.timings, false);
+        if (trial.masses.minCoeff() < epsilon0) continue;
+        const auto trial_error = detail::mass_error(trial.masses, targets);
+        if (trial_error.l2 <= (1 - step / 2) * error.l2) {
+          weights = std::move(trial_weights);
+          current = std::move(trial);
+          error = trial_error;
+          accepted = true;
+          break;
+        }
       }
+      if (!accepted && error.max_relative <= options.precision_floor_threshold)
+        return {Status::precision_floor, floor_message()};
+      if (!accepted)
+        return {Status::line_search_failure,
+                "no step length decreased the mass error after " + std::to_string(options.max_step_halvings) +
+                    " halvings at max relative mass error " + detail::format_number(error.max_relative) +
+                    " (above options.precision_floor_threshold: not a round-off floor)"};
+      record(step);
+      small_steps = step <= 1.0 / 16 && error.max_relative <= options.precision_floor_threshold ? small_steps + 1 : 0;
+      if (small_steps >= 3 && error.max_relative > tolerance) return {Status::precision_floor, floor_message()};
     }
-    if (!accepted && error.max_relative <= options.precision_floor_threshold)
-      return finish(Status::precision_floor, floor_message());
-    if (!accepted)
-      return finish(Status::line_search_failure,
-                    "no step length decreased the mass error after " + std::to_string(options.max_step_halvings) +
-                        " halvings at max relative mass error " + detail::format_number(error.max_relative) +
-                        " (above options.precision_floor_threshold: not a round-off floor)");
-    record(iteration, step);
-    small_steps = step <= 1.0 / 16 && error.max_relative <= options.precision_floor_threshold ? small_steps + 1 : 0;
-    if (small_steps >= 3 && error.max_relative > options.tolerance)
-      return finish(Status::precision_floor, floor_message());
+  };
+
+  std::string prefix;
+  if (current.masses.minCoeff() <= 0) {
+    // Some cells lie where ρ vanishes, so the Newton system is singular. Continuation: solve for
+    // ρ_t = (1 − t)ρ + t·ρ̄ (ρ̄ uniform with the same total mass, every cell gets mass) with t
+    // decreasing until every cell gets mass from ρ itself.
+    double area = 0;
+    for (Eigen::Index i = 0; i < n; ++i)
+      if (!current.diagram.cells[i].empty()) area += geometry.integrate(current.diagram.cells[i], sites[i], false).mass;
+    int stages = 0;
+    bool reached = false;
+    std::pair<Status, std::string> outcome{Status::converged, ""};
+    for (double t = 0.5; t >= 1e-12 && !reached; t *= 0.1) {
+      const detail::BlendedDensity<D> blended{density, 1 - t, t * summary.source_mass / area};
+      current = evaluate(geometry, blended, sites, weights, true, &summary.timings, false);
+      ++stages;
+      outcome = newton(blended, std::max(options.tolerance, 1e-3));
+      if (!detail::usable_status(outcome.first)) break;
+      current = evaluate(geometry, density, sites, weights, true, &summary.timings, false);
+      reached = current.masses.minCoeff() > 0;
+    }
+    if (!reached) {
+      // Name the sites whose cells get no mass from ρ (evaluated at the last weights).
+      current = evaluate(geometry, density, sites, weights, false, &summary.timings, false);
+      std::vector<Eigen::Index> starved;
+      for (Eigen::Index i = 0; i < n; ++i)
+        if (!(current.masses[i] > 0)) starved.push_back(i);
+      if (!starved.empty()) {
+        std::string list;
+        for (std::size_t k = 0; k < std::min<std::size_t>(starved.size(), 5); ++k)
+          list += (k ? ", " : "") + std::to_string(starved[k]);
+        if (starved.size() > 5) list += ", …";
+        throw InputError(indexed("sites", static_cast<std::size_t>(starved.front())),
+                         "the cell of this site cannot receive mass: the density vanishes everywhere its cell can "
+                         "reach (" +
+                             std::to_string(starved.size()) + " such sites: " + list + ")");
+      }
+      return finish(outcome.first, "continuation from a uniform density failed: " + outcome.second);
+    }
+    prefix = "after " + std::to_string(stages) + " continuation stage" + (stages > 1 ? "s" : "") +
+             " (the density vanishes on part of the domain): ";
   }
+  auto [status, message] = newton(density, options.tolerance);
+  return finish(status, prefix + message);
 }
 
 template <sdot::Geometry G, sdot::Density<G> D>

@@ -16,6 +16,8 @@
 ///   hyperboloid x itself (checked to satisfy ⟨x, x⟩_M = −1 to 1e−9 relative, then re-projected).
 
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -116,6 +118,16 @@ class Hyperbolic {
                                     int order) const;
   /// M / √(−⟨M, M⟩_M).
   [[nodiscard]] Point centroid(const CellIntegrals<Point>& integrals) const;
+
+  /// The projective chart (see ProjectiveGeometry): the re-centred Klein chart in homogeneous
+  /// coordinates, B⁻¹x / x₃ (B the boost). Geodesics are planes through the origin; a "linear"
+  /// density piece is linear in the (input) Klein coordinates x₁/x₃, x₂/x₃.
+  [[nodiscard]] Eigen::Vector3d to_projective(const Point& x) const { return inverse_boost_ * (x / x.z()); }
+  /// Any representative (either sign) of a point inside the light cone.
+  [[nodiscard]] Point from_projective(const Eigen::Vector3d& x) const {
+    const double norm2 = x.z() * x.z() - x.head<2>().squaredNorm();
+    return boost_ * (x / std::sqrt(std::max(norm2, 1e-300)) * (x.z() < 0 ? -1.0 : 1.0));
+  }
 
  private:
   Hyperbolic() = default;

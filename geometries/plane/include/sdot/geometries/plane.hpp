@@ -48,8 +48,24 @@ class Plane {
     return integrals.first_moment / integrals.mass;
   }
 
+  /// The projective chart (see ProjectiveGeometry): ((x − o)/s, 1) with o the domain's centroid
+  /// and s its radius, so coordinates are O(1) whatever the domain's position and size. Linear
+  /// in x: a "linear" density piece is linear in the plane's coordinates.
+  [[nodiscard]] Eigen::Vector3d to_projective(const Point& x) const {
+    Eigen::Vector3d result;
+    result << (x - chart_origin_) / chart_scale_, 1.0;
+    return result;
+  }
+  [[nodiscard]] Point from_projective(const Eigen::Vector3d& x) const {
+    return chart_origin_ + chart_scale_ * x.head<2>() / x.z();
+  }
+
  private:
+  void set_chart();
+
   ConvexPolygon domain_;
+  Point chart_origin_ = Point::Zero();
+  double chart_scale_ = 1;
 };
 
 }  // namespace sdot

@@ -91,6 +91,12 @@ class Sphere {
   [[nodiscard]] Point centroid(const CellIntegrals<Point>& integrals) const {
     return integrals.first_moment.normalized();
   }
+  /// The projective chart (see ProjectiveGeometry): x itself; great circles are planes through
+  /// the origin. A "linear" density piece is linear on the flat triangle through its corners,
+  /// centrally projected (the paper's piecewise-linear μ).
+  [[nodiscard]] static Eigen::Vector3d to_projective(const Point& x) { return x; }
+  [[nodiscard]] static Point from_projective(const Eigen::Vector3d& x) { return x.normalized(); }
+
   /// True when edge `label` of a cell is an arc of the cap's boundary circle (not a great arc).
   [[nodiscard]] bool is_circle_arc(int label) const { return domain_ == Domain::cap && is_boundary(label); }
 

@@ -1,0 +1,402 @@
+#pragma once
+// Implementation of piecewise_density.hpp (templates).
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <numeric>
+
+#include "sdot/error.hpp"
+
+namespace sdot::detail {
+
+inline double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::clamp(a.dot(b), -1.0, 1.0));
+}
+
+/// Sutherland–Hodgman in homogeneous coordinates: keeps the part of `polygon` with n·X ≥ 0.
+/// Intersections are points of the chord, which project onto the geodesic.
+inline void clip_homogeneous(const std::vector<Eigen::Vector3d>& polygon, const Eigen::Vector3d& normal,
+                             std::vector<Eigen::Vector3d>& out) {
+  out.clear();
+  const std::size_t n = polygon.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    const Eigen::Vector3d& p = polygon[k];
+    const Eigen::Vector3d& q = polygon[(k + 1) % n];
+    const double dp = normal.dot(p), dq = normal.dot(q);
+    if (dp >= 0) out.push_back(p);
+    if ((dp >= 0) != (dq >= 0)) out.push_back((p + (dp / (dp - dq)) * (q - p)).normalized());
+  }
+}
+
+}  // namespace sdot::detail
+
+template <sdot::ProjectiveGeometry G>
+sdot::PiecewiseDensity<G>::PiecewiseDensity(const G& geometry, const std::vector<DensityPiece<Point>>& pieces,
+                                            ScalarField<Point> field, int quadrature_order, std::string name)
+    : geometry_(geometry), name_(std::move(name)), field_(std::move(field)), quadrature_order_(quadrature_order) {
+  if (quadrature_order < 1 || quadrature_order > 64)
+    throw InputError("quadrature_order", "must be in 1..64, got " + std::to_string(quadrature_order));
+  std::vector<Eigen::Vector3d> polygon;
+  for (std::size_t p = 0; p < pieces.size(); ++p) {
+    const auto& piece = pieces[p];
+    const std::string field_name = indexed(name_, p);
+    const std::size_t count = piece.polygon.size();
+    if (count < 3) throw InputError(field_name, "has " + std::to_string(count) + " vertices; a piece needs at least 3");
+    if (piece.kind == PieceKind::linear && count != 3)
+      throw InputError(field_name, "a linear piece must be a triangle, got " + std::to_string(count) + " vertices");
+    if (piece.kind == PieceKind::field && !field_)
+      throw InputError(field_name, "is a field piece but the density has no field function");
+    const std::size_t value_count = piece.kind == PieceKind::constant ? 1 : piece.kind == PieceKind::linear ? 3 : 0;
+    for (std::size_t k = 0; k < value_count; ++k)
+      if (!(std::isfinite(piece.values[k]) && piece.values[k] >= 0))
+        throw InputError(indexed(field_name + ".values", k),
+                         "must be a finite number >= 0, got " + std::to_string(piece.values[k]));
+    polygon.clear();
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (std::size_t k = 0; k < count; ++k) {
+      const Eigen::Vector3d h =
+          piece.polygon[k].allFinite() ? geometry.to_projective(piece.polygon[k]) : Eigen::Vector3d::Constant(NAN);
+      if (!(h.allFinite() && h.norm() > 0))
+        throw InputError(field_name,
+                         "vertex " + std::to_string(k) + " is not a finite point of the " + std::string(G::name()));
+      polygon.push_back(h.normalized());
+      sum += polygon.back();
+    }
+    if (!(sum.norm() > 1e-9))
+      throw InputError(field_name, "does not fit in an open hemisphere of the chart (split it into smaller pieces)");
+    const Eigen::Vector3d center = sum.normalized();
+    double signed_area = 0, longest = 0;
+    for (std::size_t k = 0; k < count; ++k) {
+      const auto& a = polygon[k];
+      const auto& b = polygon[(k + 1) % count];
+      signed_area += center.dot(a.cross(b));
+      longest = std::max(longest, (b - a).norm());
+      if (center.dot(a) <= 1e-9)
+        throw InputError(field_name, "does not fit in an open hemisphere of the chart (split it into smaller pieces)");
+    }
+    if (!(std::abs(signed_area) > 1e-13 * longest * longest)) continue;  // zero area: contributes nothing
+    if (signed_area < 0) std::reverse(polygon.begin(), polygon.end());
+    for (std::size_t k = 0; k < count; ++k) {
+      const auto& a = polygon[(k + count - 1) % count];
+      const auto& b = polygon[k];
+      const auto& c = polygon[(k + 1) % count];
+      if (a.cross(b).dot(c) < -1e-12 * (b - a).norm() * (c - b).norm())
+        throw InputError(field_name, "is not convex at vertex " + std::to_string(k));
+    }
+    kinds_.push_back(piece.kind);
+    constants_.push_back(piece.kind == PieceKind::constant ? piece.values[0] : 0.0);
+    Eigen::Vector3d numerator = Eigen::Vector3d::Zero(), denominator = Eigen::Vector3d::Zero();
+    if (piece.kind == PieceKind::linear) {
+      // ρ(X) = v·λ / Σλ with Σ λ_k R_k = X: a = M⁻ᵀv, b = M⁻ᵀ1 for M = [R₀ R₁ R₂].
+      Eigen::Matrix3d corners_matrix;
+      for (int k = 0; k < 3; ++k) corners_matrix.col(k) = geometry.to_projective(piece.polygon[k]);
+      const Eigen::Matrix3d inverse_transpose = corners_matrix.inverse().transpose();
+      numerator = inverse_transpose * Eigen::Vector3d(piece.values[0], piece.values[1], piece.values[2]);
+      denominator = inverse_transpose * Eigen::Vector3d::Ones();
+    }
+    numerators_.push_back(numerator);
+    denominators_.push_back(denominator);
+    double radius = 0;
+    for (const auto& v : polygon) radius = std::max(radius, detail::angle_between(center, v));
+    cap_centers_.push_back(center);
+    cap_radii_.push_back(radius);
+    for (std::size_t k = 0; k < count; ++k) {
+      corners_.push_back(polygon[k]);
+      normals_.push_back(polygon[k].cross(polygon[(k + 1) % count]).normalized());
+    }
+    offsets_.push_back(static_cast<std::uint32_t>(corners_.size()));
+  }
+  tree_order_.resize(kinds_.size());
+  std::iota(tree_order_.begin(), tree_order_.end(), 0u);
+  if (!kinds_.empty()) build_tree(0, static_cast<std::uint32_t>(kinds_.size()));
+}
+
+template <sdot::ProjectiveGeometry G>
+std::int32_t sdot::PiecewiseDensity<G>::build_tree(std::uint32_t begin, std::uint32_t end) {
+  const auto index = static_cast<std::int32_t>(nodes_.size());
+  nodes_.emplace_back();
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Vector3d lower = Eigen::Vector3d::Constant(INFINITY), upper = -lower;
+  for (std::uint32_t k = begin; k < end; ++k) {
+    const auto& c = cap_centers_[tree_order_[k]];
+    sum += c;
+    lower = lower.cwiseMin(c);
+    upper = upper.cwiseMax(c);
+  }
+  Node node;
+  node.begin = begin;
+  node.end = end;
+  if (sum.norm() > 1e-9) {
+    node.center = sum.normalized();
+    for (std::uint32_t k = begin; k < end; ++k) {
+      const auto p = tree_order_[k];
+      node.radius = std::max(node.radius, detail::angle_between(node.center, cap_centers_[p]) + cap_radii_[p]);
+    }
+    node.radius = std::min(node.radius, std::numbers::pi);
+  } else {
+    node.center = Eigen::Vector3d::UnitZ();
+    node.radius = std::numbers::pi;
+  }
+  constexpr std::uint32_t leaf_size = 8;
+  if (end - begin > leaf_size) {
+    int axis = 0;
+    (upper - lower).maxCoeff(&axis);
+    const std::uint32_t middle = begin + (end - begin) / 2;
+    std::nth_element(tree_order_.begin() + begin, tree_order_.begin() + middle, tree_order_.begin() + end,
+                     [&](std::uint32_t a, std::uint32_t b) { return cap_centers_[a][axis] < cap_centers_[b][axis]; });
+    node.left = build_tree(begin, middle);
+    node.right = build_tree(middle, end);
+  }
+  nodes_[static_cast<std::size_t>(index)] = node;
+  return index;
+}
+
+template <sdot::ProjectiveGeometry G>
+template <class Visit>
+void sdot::PiecewiseDensity<G>::query(const Eigen::Vector3d& center, double radius, Visit&& visit) const {
+  if (nodes_.empty()) return;
+  constexpr double slack = 1e-9;
+  std::int32_t stack[128];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const Node& node = nodes_[static_cast<std::size_t>(stack[--top])];
+    if (detail::angle_between(center, node.center) > radius + node.radius + slack) continue;
+    if (node.left < 0) {
+      for (std::uint32_t k = node.begin; k < node.end; ++k) {
+        const auto p = tree_order_[k];
+        if (detail::angle_between(center, cap_centers_[p]) <= radius + cap_radii_[p] + slack) visit(std::size_t{p});
+      }
+    } else {
+      stack[top++] = node.left;
+      stack[top++] = node.right;
+    }
+  }
+}
+
+template <sdot::ProjectiveGeometry G>
+double sdot::PiecewiseDensity<G>::local_value(std::size_t piece, const Point& x) const {
+  switch (kinds_[piece]) {
+    case PieceKind::constant:
+      return constants_[piece];
+    case PieceKind::linear: {
+      const Eigen::Vector3d h = geometry_.to_projective(x);
+      return std::max(0.0, numerators_[piece].dot(h) / denominators_[piece].dot(h));
+    }
+    case PieceKind::field:
+    default:
+      return field_(x);
+  }
+}
+
+template <sdot::ProjectiveGeometry G>
+sdot::CellIntegrals<typename G::Point> sdot::PiecewiseDensity<G>::integrate_piece(const G& geometry, std::size_t piece,
+                                                                                  const Cell<Point>& polygon,
+                                                                                  const Point& site,
+                                                                                  bool with_cost) const {
+  switch (kinds_[piece]) {
+    case PieceKind::constant: {
+      const double value = constants_[piece];
+      if (value == 0) return {};
+      auto integrals = geometry.integrate(polygon, site, with_cost);
+      integrals.mass *= value;
+      integrals.first_moment *= value;
+      integrals.cost *= value;
+      return integrals;
+    }
+    case PieceKind::linear: {
+      const ScalarField<Point> rho = [this, piece](const Point& x) { return local_value(piece, x); };
+      return geometry.integrate(polygon, site, rho, quadrature_order_);
+    }
+    case PieceKind::field:
+    default:
+      return geometry.integrate(polygon, site, field_, quadrature_order_);
+  }
+}
+
+template <sdot::ProjectiveGeometry G>
+template <class Visit>
+void sdot::PiecewiseDensity<G>::for_each_overlap(const Cell<Point>& cell, Visit&& visit) const {
+  if (cell.empty()) return;
+  // Cells are clipped by the pieces, not the other way round: a piece's edges come from
+  // well-separated data points, while a Laguerre cell may have arbitrarily short edges whose
+  // direction is not reliable.
+  thread_local std::vector<Eigen::Vector3d> polygon, clipped, scratch;
+  thread_local Cell<Point> piece_cell;
+  polygon.clear();
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const auto& v : cell.vertices) {
+    polygon.push_back(unit(v));
+    sum += polygon.back();
+  }
+  Eigen::Vector3d center = Eigen::Vector3d::UnitZ();
+  double radius = std::numbers::pi;  // a cell that is not small: query everything
+  if (sum.norm() > 1e-9) {
+    center = sum.normalized();
+    double r = 0;
+    for (const auto& v : polygon) r = std::max(r, detail::angle_between(center, v));
+    if (r < std::numbers::pi / 2 - 1e-6) radius = r;
+  }
+  query(center, radius, [&](std::size_t piece) {
+    clipped = polygon;
+    for (std::uint32_t k = offsets_[piece]; k < offsets_[piece + 1] && clipped.size() >= 3; ++k) {
+      detail::clip_homogeneous(clipped, normals_[k], scratch);
+      std::swap(clipped, scratch);
+    }
+    if (clipped.size() < 3) return;
+    piece_cell.vertices.clear();
+    for (const auto& v : clipped) piece_cell.vertices.push_back(geometry_.from_projective(v));
+    piece_cell.neighbors.assign(clipped.size(), 0);
+    visit(piece, static_cast<const Cell<Point>&>(piece_cell));
+  });
+}
+
+template <sdot::ProjectiveGeometry G>
+sdot::CellIntegrals<typename G::Point> sdot::PiecewiseDensity<G>::integrate_cell(const G& geometry,
+                                                                                 const Cell<Point>& cell,
+                                                                                 const Point& site,
+                                                                                 bool with_cost) const {
+  if constexpr (requires { geometry.is_circle_arc(0); }) {
+    for (int label : cell.neighbors)
+      if (geometry.is_circle_arc(label))
+        throw InputError(name_, "piecewise densities need a domain bounded by geodesics; the " +
+                                    std::string(G::name()) +
+                                    "'s cap domain is not supported (use the whole sphere or a polygon domain)");
+  }
+  CellIntegrals<Point> result;
+  for_each_overlap(cell, [&](std::size_t piece, const Cell<Point>& polygon) {
+    const auto part = integrate_piece(geometry, piece, polygon, site, with_cost);
+    result.mass += part.mass;
+    result.first_moment += part.first_moment;
+    result.cost += part.cost;
+  });
+  return result;
+}
+
+template <sdot::ProjectiveGeometry G>
+double sdot::PiecewiseDensity<G>::facet_weight(const G& geometry, const Point& a, const Point& b, const Point& site_i,
+                                               double weight_i, const Point& site_j, double weight_j) const {
+  const Eigen::Vector3d ua = unit(a), ub = unit(b);
+  const Eigen::Vector3d middle = (ua + ub).normalized();
+  double result = 0;
+  query(middle, detail::angle_between(ua, ub) / 2, [&](std::size_t piece) {
+    if (kinds_[piece] == PieceKind::constant && constants_[piece] == 0) return;
+    double s0 = 0, s1 = 1, share = 1;
+    for (std::uint32_t k = offsets_[piece]; k < offsets_[piece + 1]; ++k) {
+      const double da = normals_[k].dot(ua), db = normals_[k].dot(ub);
+      constexpr double on_edge = 1e-12;
+      if (std::abs(da) <= on_edge && std::abs(db) <= on_edge) {
+        share = 0.5;  // along the common edge of two pieces: the mean of both sides
+        continue;
+      }
+      if (da < 0 && db < 0) return;
+      if (da < 0) s0 = std::max(s0, da / (da - db));
+      if (db < 0) s1 = std::min(s1, da / (da - db));
+    }
+    if (!(s1 > s0)) return;
+    const Point pa = geometry_.from_projective((1 - s0) * ua + s0 * ub);
+    const Point pb = geometry_.from_projective((1 - s1) * ua + s1 * ub);
+    switch (kinds_[piece]) {
+      case PieceKind::constant:
+        result += share * constants_[piece] * geometry.facet_weight(pa, pb, site_i, weight_i, site_j, weight_j);
+        break;
+      case PieceKind::linear: {
+        const ScalarField<Point> rho = [this, piece](const Point& x) { return local_value(piece, x); };
+        result += share * geometry.facet_weight(pa, pb, site_i, weight_i, site_j, weight_j, rho, quadrature_order_);
+        break;
+      }
+      case PieceKind::field:
+        result += share * geometry.facet_weight(pa, pb, site_i, weight_i, site_j, weight_j, field_, quadrature_order_);
+        break;
+    }
+  });
+  return result;
+}
+
+template <sdot::ProjectiveGeometry G>
+double sdot::PiecewiseDensity<G>::total_mass() const {
+  const auto count = static_cast<std::ptrdiff_t>(kinds_.size());
+  double total = 0;
+#pragma omp parallel for reduction(+ : total) schedule(dynamic, 1024)
+  for (std::ptrdiff_t p = 0; p < count; ++p) {
+    Cell<Point> polygon;
+    for (const auto& v : corners(static_cast<std::size_t>(p))) polygon.vertices.push_back(geometry_.from_projective(v));
+    polygon.neighbors.assign(polygon.vertices.size(), 0);
+    total += integrate_piece(geometry_, static_cast<std::size_t>(p), polygon, polygon.vertices[0], false).mass;
+  }
+  return total;
+}
+
+template <sdot::ProjectiveGeometry G>
+double sdot::PiecewiseDensity<G>::value(const Point& x) const {
+  const Eigen::Vector3d ux = unit(x);
+  double found = 0;
+  bool done = false;
+  query(ux, 0, [&](std::size_t piece) {
+    if (done) return;
+    for (std::uint32_t k = offsets_[piece]; k < offsets_[piece + 1]; ++k)
+      if (normals_[k].dot(ux) < -1e-15) return;
+    found = local_value(piece, x);
+    done = true;
+  });
+  return found;
+}
+
+template <sdot::ProjectiveGeometry G>
+sdot::PiecewiseDensity<G> sdot::mesh_density(const G& geometry, std::span<const typename G::Point> vertices,
+                                             std::span<const std::array<int, 3>> triangles,
+                                             std::span<const double> vertex_values, int quadrature_order,
+                                             const std::string& name) {
+  using Point = typename G::Point;
+  if (vertex_values.size() != vertices.size())
+    throw InputError(name + ".values", "has " + std::to_string(vertex_values.size()) + " values for " +
+                                           std::to_string(vertices.size()) + " vertices");
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    if (!vertices[i].allFinite()) throw InputError(indexed(name + ".vertices", i), "is not finite");
+    if (!(std::isfinite(vertex_values[i]) && vertex_values[i] >= 0))
+      throw InputError(indexed(name + ".values", i),
+                       "must be a finite number >= 0, got " + std::to_string(vertex_values[i]));
+  }
+  std::vector<DensityPiece<Point>> pieces(triangles.size());
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    auto& piece = pieces[t];
+    piece.kind = PieceKind::linear;
+    for (int k = 0; k < 3; ++k) {
+      const int v = triangles[t][static_cast<std::size_t>(k)];
+      if (v < 0 || static_cast<std::size_t>(v) >= vertices.size())
+        throw InputError(indexed(name + ".triangles", t), "vertex index " + std::to_string(v) + " is out of range (" +
+                                                              std::to_string(vertices.size()) + " vertices)");
+      piece.polygon.push_back(vertices[static_cast<std::size_t>(v)]);
+      piece.values[static_cast<std::size_t>(k)] = vertex_values[static_cast<std::size_t>(v)];
+    }
+  }
+  return PiecewiseDensity<G>(geometry, pieces, {}, quadrature_order, name + ".triangles");
+}
+
+template <sdot::ProjectiveGeometry G>
+sdot::PiecewiseDensity<G> sdot::mesh_density_per_triangle(const G& geometry,
+                                                          std::span<const typename G::Point> vertices,
+                                                          std::span<const std::array<int, 3>> triangles,
+                                                          std::span<const double> triangle_values,
+                                                          const std::string& name) {
+  using Point = typename G::Point;
+  if (triangle_values.size() != triangles.size())
+    throw InputError(name + ".values", "has " + std::to_string(triangle_values.size()) + " values for " +
+                                           std::to_string(triangles.size()) + " triangles");
+  std::vector<DensityPiece<Point>> pieces(triangles.size());
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    auto& piece = pieces[t];
+    piece.kind = PieceKind::constant;
+    piece.values[0] = triangle_values[t];
+    for (int v : triangles[t]) {
+      if (v < 0 || static_cast<std::size_t>(v) >= vertices.size())
+        throw InputError(indexed(name + ".triangles", t), "vertex index " + std::to_string(v) + " is out of range (" +
+                                                              std::to_string(vertices.size()) + " vertices)");
+      if (!vertices[static_cast<std::size_t>(v)].allFinite())
+        throw InputError(indexed(name + ".vertices", static_cast<std::size_t>(v)), "is not finite");
+      piece.polygon.push_back(vertices[static_cast<std::size_t>(v)]);
+    }
+  }
+  return PiecewiseDensity<G>(geometry, pieces, {}, 5, name + ".triangles");
+}

@@ -1,0 +1,151 @@
+#pragma once
+/// \file piecewise_density.hpp
+/// Densities given as data: ρ defined piece by piece on convex geodesic polygons (the triangles
+/// of a mesh, the pixels of an image, the convex parts of a non-convex domain) and zero outside
+/// the pieces. One implementation serves every geometry whose geodesics are straight in a
+/// projective chart (`ProjectiveGeometry`): the plane, the sphere (central projection) and H²
+/// (the Klein model). Cells are intersected with the pieces they overlap, found through a
+/// bounding-cap tree (never a scan of all pieces), and each intersection is handed to the
+/// geometry's own integration: exact for constant pieces, quadrature for the others.
+///
+///     auto rho = sdot::mesh_density(sphere, vertices, triangles, values);  // ρ per vertex
+///     auto result = sdot::solve(sphere, rho, sites, masses);
+///
+/// Where ρ vanishes the solver still works as long as the support is connected (see solve()).
+
+#include <Eigen/Geometry>
+#include <array>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "sdot/density.hpp"
+#include "sdot/geometry.hpp"
+
+namespace sdot {
+
+/// A geometry whose cell edges and geodesics are straight in a projective chart: points map to
+/// homogeneous 3-vectors (`to_projective`, defined up to a positive factor) and back
+/// (`from_projective`), and a geodesic through two points is the plane through the origin
+/// spanned by their images. The scale of `to_projective` fixes what "linear" means for a
+/// density piece: ρ(x) = Σ λ_k v_k with Σ λ_k R_k ∝ to_projective(x), Σ λ_k = 1, R_k the corners'
+/// images (plane: linear in x; sphere: linear on the flat triangle, centrally projected;
+/// H²: linear in Klein coordinates).
+template <class G>
+concept ProjectiveGeometry = Geometry<G> &&
+    requires(const G& geometry, const typename G::Point& point, const Eigen::Vector3d& homogeneous) {
+  { geometry.to_projective(point) } -> std::convertible_to<Eigen::Vector3d>;
+  { geometry.from_projective(homogeneous) } -> std::convertible_to<typename G::Point>;
+};
+
+/// How ρ varies over one piece.
+enum class PieceKind : std::uint8_t {
+  constant,  ///< ρ = values[0] on the piece; integrated exactly
+  linear,    ///< a triangle with ρ = values[k] at corner k, linear in the chart; quadrature
+  field,     ///< ρ = the density's field function on the piece; quadrature (the piece bounds a
+             ///< region where the field is smooth, e.g. one pixel of a bilinear image)
+};
+
+/// One piece: a convex geodesic polygon (either orientation, at least 3 vertices, inside an
+/// open hemisphere of the chart) and the local form of ρ.
+template <class Point>
+struct DensityPiece {
+  std::vector<Point> polygon;
+  PieceKind kind = PieceKind::constant;
+  std::array<double, 3> values{};
+};
+
+/// ρ defined on interior-disjoint convex pieces, zero elsewhere. A model of `Density<G>`.
+/// Thread-safe for concurrent integration.
+template <ProjectiveGeometry G>
+class PiecewiseDensity {
+ public:
+  using Point = typename G::Point;
+
+  /// Validates the pieces (throws InputError naming `<name>[p]` for a non-finite vertex,
+  /// a negative or non-finite value, fewer than 3 vertices, a non-convex polygon, a linear piece
+  /// that is not a triangle, a field piece without a field). Degenerate pieces (zero area) are
+  /// dropped. `field` is used by pieces of kind `field`; `quadrature_order` (1…64) by linear
+  /// and field pieces. The pieces' coordinates are interpreted in `geometry`'s chart.
+  PiecewiseDensity(const G& geometry, const std::vector<DensityPiece<Point>>& pieces, ScalarField<Point> field = {},
+                   int quadrature_order = 5, std::string name = "density.pieces");
+
+  [[nodiscard]] std::size_t piece_count() const { return kinds_.size(); }
+  /// ∫ρ over all pieces.
+  [[nodiscard]] double total_mass() const;
+  [[nodiscard]] int quadrature_order() const { return quadrature_order_; }
+
+  /// Mass, first moment and cost of ρ over a cell (the `Density` concept).
+  [[nodiscard]] CellIntegrals<Point> integrate_cell(const G& geometry, const Cell<Point>& cell, const Point& site,
+                                                    bool with_cost = true) const;
+  /// ∫_{[a,b]} ρ / |∇(c_i − c_j)| ds over the pieces the edge crosses. An edge lying along the
+  /// common edge of two pieces takes the mean of both sides.
+  [[nodiscard]] double facet_weight(const G& geometry, const Point& a, const Point& b, const Point& site_i,
+                                    double weight_i, const Point& site_j, double weight_j) const;
+
+  /// Calls visit(piece index, clipped polygon as a cell) for each non-empty intersection of a
+  /// cell with a piece (also useful to inspect or draw the density).
+  template <class Visit>
+  void for_each_overlap(const Cell<Point>& cell, Visit&& visit) const;
+
+  /// ρ at a point (0 outside the pieces). Walks the cap tree: for probing, not for integration.
+  [[nodiscard]] double value(const Point& x) const;
+
+ private:
+  struct Node {
+    Eigen::Vector3d center;  // unit vector
+    double radius = 0;       // angle: every piece of the subtree lies in this cap
+    std::uint32_t begin = 0, end = 0;
+    std::int32_t left = -1, right = -1;
+  };
+
+  [[nodiscard]] std::span<const Eigen::Vector3d> corners(std::size_t piece) const {
+    return {corners_.data() + offsets_[piece], corners_.data() + offsets_[piece + 1]};
+  }
+  [[nodiscard]] Eigen::Vector3d unit(const Point& x) const { return geometry_.to_projective(x).normalized(); }
+  /// Calls visit(piece) for every piece whose cap meets the cap (center, radius).
+  template <class Visit>
+  void query(const Eigen::Vector3d& center, double radius, Visit&& visit) const;
+  std::int32_t build_tree(std::uint32_t begin, std::uint32_t end);
+  /// The local ρ of a piece at a point.
+  [[nodiscard]] double local_value(std::size_t piece, const Point& x) const;
+  [[nodiscard]] CellIntegrals<Point> integrate_piece(const G& geometry, std::size_t piece, const Cell<Point>& polygon,
+                                                     const Point& site, bool with_cost) const;
+
+  G geometry_;
+  std::string name_;
+  ScalarField<Point> field_;
+  int quadrature_order_ = 5;
+  std::vector<Eigen::Vector3d> corners_;  // unit projective corners, counter-clockwise
+  std::vector<Eigen::Vector3d> normals_;  // edge k of a piece: n·X ≥ 0 inside
+  std::vector<std::uint32_t> offsets_{0};
+  std::vector<PieceKind> kinds_;
+  std::vector<double> constants_;
+  std::vector<Eigen::Vector3d> numerators_, denominators_;  // linear: ρ = a·X / b·X
+  std::vector<Eigen::Vector3d> cap_centers_;
+  std::vector<double> cap_radii_;
+  std::vector<std::uint32_t> tree_order_;
+  std::vector<Node> nodes_;
+};
+
+/// ρ piecewise linear on a triangle mesh, from its values at the vertices (linear in the
+/// geometry's chart, see ProjectiveGeometry). Throws InputError naming `<name>.vertices[i]`,
+/// `<name>.triangles[t]` (index out of range, larger than a hemisphere) or `<name>.values[i]`
+/// (negative, not finite, wrong count). Triangles of zero area (also repeated vertices) are
+/// dropped. Triangles must not overlap.
+template <ProjectiveGeometry G>
+PiecewiseDensity<G> mesh_density(const G& geometry, std::span<const typename G::Point> vertices,
+                                 std::span<const std::array<int, 3>> triangles, std::span<const double> vertex_values,
+                                 int quadrature_order = 5, const std::string& name = "density");
+
+/// ρ constant on each triangle of a mesh (one value per triangle), integrated exactly.
+template <ProjectiveGeometry G>
+PiecewiseDensity<G> mesh_density_per_triangle(const G& geometry, std::span<const typename G::Point> vertices,
+                                              std::span<const std::array<int, 3>> triangles,
+                                              std::span<const double> triangle_values,
+                                              const std::string& name = "density");
+
+}  // namespace sdot
+
+#include "sdot/detail/piecewise_density_impl.hpp"
