@@ -89,6 +89,12 @@ class PiecewiseDensity {
   template <class Visit>
   void for_each_overlap(const Cell<Point>& cell, Visit&& visit) const;
 
+  /// The same density times the indicator of a region given as interior-disjoint convex
+  /// polygons (e.g. PlaneRegion::convex_pieces() of a domain with holes). Throws InputError
+  /// naming `<field>[r]` for an invalid region piece.
+  [[nodiscard]] PiecewiseDensity restricted_to(const std::vector<std::vector<Point>>& region,
+                                               const std::string& field = "domain.pieces") const;
+
   /// ρ at a point (0 outside the pieces). Walks the cap tree: for probing, not for integration.
   [[nodiscard]] double value(const Point& x) const;
 
@@ -108,6 +114,10 @@ class PiecewiseDensity {
   template <class Visit>
   void query(const Eigen::Vector3d& center, double radius, Visit&& visit) const;
   std::int32_t build_tree(std::uint32_t begin, std::uint32_t end);
+  /// Appends a validated piece (unit corners, counter-clockwise); build_index() afterwards.
+  void add_unit_piece(const std::vector<Eigen::Vector3d>& polygon, PieceKind kind, double constant,
+                      const Eigen::Vector3d& numerator, const Eigen::Vector3d& denominator);
+  void build_index();
   /// The local ρ of a piece at a point.
   [[nodiscard]] double local_value(std::size_t piece, const Point& x) const;
   [[nodiscard]] CellIntegrals<Point> integrate_piece(const G& geometry, std::size_t piece, const Cell<Point>& polygon,

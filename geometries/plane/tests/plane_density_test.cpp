@@ -59,3 +59,108 @@ TEST(PlaneDensity, LinearMeshEqualsLinearFunctionDensity) {
 }
 
 }  // namespace sdot::testing
+
+#include <filesystem>
+
+#include "sdot/geometries/plane_densities.hpp"
+
+namespace sdot::testing {
+
+namespace {
+GrayImage test_image(int width, int height, unsigned seed, double zero_fraction = 0) {
+  std::mt19937_64 random(seed);
+  std::uniform_real_distribution<double> uniform(0, 1);
+  GrayImage image{width, height, {}};
+  for (int k = 0; k < width * height; ++k)
+    image.values.push_back(uniform(random) < zero_fraction ? 0 : 0.2 + uniform(random));
+  return image;
+}
+std::vector<Plane::Point> sites_in_box(std::size_t n, double x0, double y0, double x1, double y1, unsigned seed) {
+  std::mt19937_64 random(seed);
+  std::uniform_real_distribution<double> ux(x0, x1), uy(y0, y1);
+  std::vector<Plane::Point> sites;
+  while (sites.size() < n) sites.emplace_back(ux(random), uy(random));
+  return sites;
+}
+}  // namespace
+
+TEST(PlaneDensity, ConstantImageIsExactAndConverges) {
+  const Plane plane(ConvexPolygon::rectangle(-1, 0, 2, 2));
+  const GrayImage image = test_image(12, 8, 1);
+  const auto density = image_density(plane, image, Eigen::AlignedBox2d(Eigen::Vector2d(-1, 0), Eigen::Vector2d(2, 2)),
+                                     ImageInterpolation::constant);
+  double expected = 0;
+  for (double v : image.values) expected += v * 0.25 * 0.25;
+  EXPECT_NEAR(density.total_mass(), expected, 1e-13 * expected);
+  const auto sites = sites_in_box(200, -1, 0, 2, 2, 3);
+  const Eigen::VectorXd masses = equal_masses(sites.size(), 1.0);
+  const auto result = solve(plane, density, std::span<const Plane::Point>(sites), masses);
+  ASSERT_TRUE(result.summary.converged()) << result.summary.message;
+  EXPECT_NEAR(result.masses.sum(), expected, 1e-11 * expected);
+  const double error = hessian_fd_error(
+      plane, density, std::span<const Plane::Point>(sites).first(40),
+      solved_weights(plane, density, std::span<const Plane::Point>(sites).first(40), equal_masses(40, 1.0)));
+  std::printf("  constant image: Hessian vs finite differences %.2e\n", error);
+  EXPECT_LT(error, 1e-6);
+}
+
+TEST(PlaneDensity, BilinearImageFromFileConvergesWithZeroPixels) {
+  // Written and read back through the image reader, with 30% zero pixels.
+  const auto path = std::filesystem::temp_directory_path() / "sdot_plane_density_test.pgm";
+  write_pgm(path.string(), test_image(16, 16, 5, 0.3), true);
+  const GrayImage image = read_image(path.string());
+  std::filesystem::remove(path);
+  const Plane plane;
+  const auto density = image_density(plane, image, Eigen::AlignedBox2d(Eigen::Vector2d(0, 0), Eigen::Vector2d(1, 1)),
+                                     ImageInterpolation::bilinear);
+  GrayImage flat{16, 16, std::vector<double>(256, 0.5)};
+  const auto flat_density = image_density(
+      plane, flat, Eigen::AlignedBox2d(Eigen::Vector2d(0, 0), Eigen::Vector2d(1, 1)), ImageInterpolation::bilinear);
+  EXPECT_NEAR(flat_density.total_mass(), 0.5, 1e-13);
+  // The bilinear interpolant at pixel centres is the pixel value.
+  EXPECT_NEAR(density.value(Plane::Point(5.5 / 16, 1 - 3.5 / 16)), image.at(3, 5), 1e-14);
+  const auto sites = sites_in_box(150, 0, 0, 1, 1, 8);
+  const auto result = solve(plane, density, std::span<const Plane::Point>(sites), equal_masses(sites.size(), 1.0));
+  ASSERT_TRUE(result.summary.converged()) << result.summary.message;
+  EXPECT_LE(result.summary.max_relative_error, 1e-9);
+  const auto few = std::span<const Plane::Point>(sites).first(30);
+  // The steep interpolant has large third derivatives: a small step keeps the FD truncation
+  // error (∝ δ², 3e-6 at δ = 1e-6) below the check.
+  const double error =
+      hessian_fd_error(plane, density, few, solved_weights(plane, density, few, equal_masses(30, 1.0)), 1e-7);
+  std::printf("  bilinear image: Hessian vs finite differences %.2e\n", error);
+  EXPECT_LT(error, 1e-6);
+}
+
+TEST(PlaneDensity, DomainWithHolesAndSitesInsideTheHoles) {
+  // The square [0, 4]² minus two square holes; some sites lie in the holes.
+  const PlaneRegion region(
+      {PolygonWithHoles{{{0, 0}, {4, 0}, {4, 4}, {0, 4}},
+                        {{{1, 1}, {1, 2}, {2, 2}, {2, 1}}, {{2.5, 2.5}, {2.5, 3.5}, {3.5, 3.5}, {3.5, 2.5}}}}});
+  const Plane plane(ConvexPolygon::rectangle(0, 0, 4, 4));
+  const auto density = region_density(plane, region);
+  EXPECT_NEAR(density.total_mass(), 14, 1e-12);
+  const auto sites = sites_in_box(300, 0, 0, 4, 4, 13);
+  const auto result = solve(plane, density, std::span<const Plane::Point>(sites), equal_masses(sites.size(), 1.0));
+  ASSERT_TRUE(result.summary.converged()) << result.summary.message;
+  EXPECT_LE(result.summary.max_relative_error, 1e-9);
+  EXPECT_NEAR(result.masses.sum(), 14, 1e-10);
+  // A density restricted to the region: ∫ over the region only.
+  const GrayImage image = test_image(8, 8, 21);
+  const auto on_square = image_density(plane, image, Eigen::AlignedBox2d(Eigen::Vector2d(0, 0), Eigen::Vector2d(4, 4)),
+                                       ImageInterpolation::constant);
+  const auto restricted = on_square.restricted_to(region.convex_pieces());
+  double expected = 0;
+  for (int r = 0; r < 8; ++r)
+    for (int c = 0; c < 8; ++c) {
+      const Plane::Point center((c + 0.5) * 0.5, 4 - (r + 0.5) * 0.5);
+      // Pixels are 0.5 wide; the holes are unions of whole pixels.
+      if (region.contains(center)) expected += image.at(r, c) * 0.25;
+    }
+  EXPECT_NEAR(restricted.total_mass(), expected, 1e-12 * expected);
+  const auto restricted_result =
+      solve(plane, restricted, std::span<const Plane::Point>(sites), equal_masses(sites.size(), 1.0));
+  ASSERT_TRUE(restricted_result.summary.converged()) << restricted_result.summary.message;
+}
+
+}  // namespace sdot::testing

@@ -108,3 +108,63 @@ TEST(SphereDensity, LinearMeshConvergesToTheSmoothDensityUnderRefinement) {
 }
 
 }  // namespace sdot::testing
+
+#include <numbers>
+
+#include "sdot/geometries/sphere_densities.hpp"
+
+namespace sdot::testing {
+
+namespace {
+GrayImage earth_like(int width, int height) {
+  // Smooth "land" blobs on zero "ocean": ρ vanishes on about half of the sphere.
+  GrayImage image{width, height, {}};
+  for (int r = 0; r < height; ++r)
+    for (int c = 0; c < width; ++c) {
+      const double lon = -std::numbers::pi + (c + 0.5) * 2 * std::numbers::pi / width;
+      const double lat = std::numbers::pi / 2 - (r + 0.5) * std::numbers::pi / height;
+      const double land = std::sin(2 * lon) * std::cos(lat) + 0.4 * std::sin(3 * lat);
+      image.values.push_back(land > 0 ? std::min(1.0, 0.2 + land) : 0.0);
+    }
+  return image;
+}
+}  // namespace
+
+TEST(SphereDensity, EquirectangularTilesTheSphere) {
+  const GrayImage ones{36, 18, std::vector<double>(36 * 18, 1.0)};
+  const auto constant = equirectangular_density(Sphere(), ones, ImageInterpolation::constant);
+  const auto linear = equirectangular_density(Sphere(), ones, ImageInterpolation::linear);
+  EXPECT_NEAR(constant.total_mass(), 4 * std::numbers::pi, 1e-12);
+  EXPECT_NEAR(linear.total_mass(), 4 * std::numbers::pi, 1e-11);
+  EXPECT_NE(input_error([&] {
+              (void)equirectangular_density(Sphere(), ones, ImageInterpolation::bilinear);
+            }).find("density.interpolation"),
+            std::string::npos);
+  EXPECT_NE(input_error([] {
+              (void)equirectangular_density(Sphere(), GrayImage{2, 2, {1, 1, 1, 1}}, ImageInterpolation::constant);
+            }).find("at least 3 columns"),
+            std::string::npos);
+}
+
+TEST(SphereDensity, EarthLikeImageConverges) {
+  const GrayImage image = earth_like(72, 36);
+  std::mt19937_64 random(17);
+  std::vector<Vec> sites;
+  while (sites.size() < 400) sites.push_back(random_unit(random));
+  for (auto interpolation : {ImageInterpolation::constant, ImageInterpolation::linear}) {
+    const auto density = equirectangular_density(Sphere(), image, interpolation);
+    const auto result = solve(Sphere(), density, std::span<const Vec>(sites), equal_masses(sites.size(), 1.0));
+    std::printf("  %s: %s\n", interpolation == ImageInterpolation::constant ? "constant" : "linear",
+                result.summary.message.c_str());
+    ASSERT_TRUE(result.summary.converged()) << result.summary.message;
+    EXPECT_LE(result.summary.max_relative_error, 1e-9);
+    EXPECT_NEAR(result.masses.sum(), density.total_mass(), 1e-10 * density.total_mass());
+    const auto few = std::span<const Vec>(sites).first(30);
+    const double error =
+        hessian_fd_error(Sphere(), density, few, solved_weights(Sphere(), density, few, equal_masses(30, 1.0)));
+    std::printf("  Hessian vs finite differences %.2e\n", error);
+    EXPECT_LT(error, 1e-6);
+  }
+}
+
+}  // namespace sdot::testing

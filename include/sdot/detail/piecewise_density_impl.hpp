@@ -53,23 +53,27 @@ sdot::PiecewiseDensity<G>::PiecewiseDensity(const G& geometry, const std::vector
         throw InputError(indexed(field_name + ".values", k),
                          "must be a finite number >= 0, got " + std::to_string(piece.values[k]));
     polygon.clear();
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     for (std::size_t k = 0; k < count; ++k) {
       const Eigen::Vector3d h =
           piece.polygon[k].allFinite() ? geometry.to_projective(piece.polygon[k]) : Eigen::Vector3d::Constant(NAN);
       if (!(h.allFinite() && h.norm() > 0))
         throw InputError(field_name,
                          "vertex " + std::to_string(k) + " is not a finite point of the " + std::string(G::name()));
-      polygon.push_back(h.normalized());
-      sum += polygon.back();
+      // Repeated corners (e.g. a pixel touching a pole) are merged.
+      if (polygon.empty() || (h.normalized() - polygon.back()).norm() > 1e-15) polygon.push_back(h.normalized());
     }
+    while (polygon.size() > 1 && (polygon.front() - polygon.back()).norm() <= 1e-15) polygon.pop_back();
+    if (polygon.size() < 3) continue;  // zero area: contributes nothing
+    const std::size_t corners = polygon.size();
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (const auto& v : polygon) sum += v;
     if (!(sum.norm() > 1e-9))
       throw InputError(field_name, "does not fit in an open hemisphere of the chart (split it into smaller pieces)");
     const Eigen::Vector3d center = sum.normalized();
     double signed_area = 0, longest = 0;
-    for (std::size_t k = 0; k < count; ++k) {
+    for (std::size_t k = 0; k < corners; ++k) {
       const auto& a = polygon[k];
-      const auto& b = polygon[(k + 1) % count];
+      const auto& b = polygon[(k + 1) % corners];
       signed_area += center.dot(a.cross(b));
       longest = std::max(longest, (b - a).norm());
       if (center.dot(a) <= 1e-9)
@@ -77,15 +81,13 @@ sdot::PiecewiseDensity<G>::PiecewiseDensity(const G& geometry, const std::vector
     }
     if (!(std::abs(signed_area) > 1e-13 * longest * longest)) continue;  // zero area: contributes nothing
     if (signed_area < 0) std::reverse(polygon.begin(), polygon.end());
-    for (std::size_t k = 0; k < count; ++k) {
-      const auto& a = polygon[(k + count - 1) % count];
+    for (std::size_t k = 0; k < corners; ++k) {
+      const auto& a = polygon[(k + corners - 1) % corners];
       const auto& b = polygon[k];
-      const auto& c = polygon[(k + 1) % count];
+      const auto& c = polygon[(k + 1) % corners];
       if (a.cross(b).dot(c) < -1e-12 * (b - a).norm() * (c - b).norm())
         throw InputError(field_name, "is not convex at vertex " + std::to_string(k));
     }
-    kinds_.push_back(piece.kind);
-    constants_.push_back(piece.kind == PieceKind::constant ? piece.values[0] : 0.0);
     Eigen::Vector3d numerator = Eigen::Vector3d::Zero(), denominator = Eigen::Vector3d::Zero();
     if (piece.kind == PieceKind::linear) {
       // ρ(X) = v·λ / Σλ with Σ λ_k R_k = X: a = M⁻ᵀv, b = M⁻ᵀ1 for M = [R₀ R₁ R₂].
@@ -95,18 +97,37 @@ sdot::PiecewiseDensity<G>::PiecewiseDensity(const G& geometry, const std::vector
       numerator = inverse_transpose * Eigen::Vector3d(piece.values[0], piece.values[1], piece.values[2]);
       denominator = inverse_transpose * Eigen::Vector3d::Ones();
     }
-    numerators_.push_back(numerator);
-    denominators_.push_back(denominator);
-    double radius = 0;
-    for (const auto& v : polygon) radius = std::max(radius, detail::angle_between(center, v));
-    cap_centers_.push_back(center);
-    cap_radii_.push_back(radius);
-    for (std::size_t k = 0; k < count; ++k) {
-      corners_.push_back(polygon[k]);
-      normals_.push_back(polygon[k].cross(polygon[(k + 1) % count]).normalized());
-    }
-    offsets_.push_back(static_cast<std::uint32_t>(corners_.size()));
+    add_unit_piece(polygon, piece.kind, piece.kind == PieceKind::constant ? piece.values[0] : 0.0, numerator,
+                   denominator);
   }
+  build_index();
+}
+
+template <sdot::ProjectiveGeometry G>
+void sdot::PiecewiseDensity<G>::add_unit_piece(const std::vector<Eigen::Vector3d>& polygon, PieceKind kind,
+                                               double constant, const Eigen::Vector3d& numerator,
+                                               const Eigen::Vector3d& denominator) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const auto& v : polygon) sum += v;
+  const Eigen::Vector3d center = sum.normalized();
+  double radius = 0;
+  for (const auto& v : polygon) radius = std::max(radius, detail::angle_between(center, v));
+  kinds_.push_back(kind);
+  constants_.push_back(constant);
+  numerators_.push_back(numerator);
+  denominators_.push_back(denominator);
+  cap_centers_.push_back(center);
+  cap_radii_.push_back(radius);
+  for (std::size_t k = 0; k < polygon.size(); ++k) {
+    corners_.push_back(polygon[k]);
+    normals_.push_back(polygon[k].cross(polygon[(k + 1) % polygon.size()]).normalized());
+  }
+  offsets_.push_back(static_cast<std::uint32_t>(corners_.size()));
+}
+
+template <sdot::ProjectiveGeometry G>
+void sdot::PiecewiseDensity<G>::build_index() {
+  nodes_.clear();
   tree_order_.resize(kinds_.size());
   std::iota(tree_order_.begin(), tree_order_.end(), 0u);
   if (!kinds_.empty()) build_tree(0, static_cast<std::uint32_t>(kinds_.size()));
@@ -311,6 +332,40 @@ double sdot::PiecewiseDensity<G>::facet_weight(const G& geometry, const Point& a
         break;
     }
   });
+  return result;
+}
+
+template <sdot::ProjectiveGeometry G>
+sdot::PiecewiseDensity<G> sdot::PiecewiseDensity<G>::restricted_to(const std::vector<std::vector<Point>>& region,
+                                                                   const std::string& field) const {
+  // Clip every piece overlapping a region piece by that region piece: the region's pieces come
+  // from data (well-conditioned edges) and are convex.
+  const std::vector<DensityPiece<Point>> region_pieces = [&] {
+    std::vector<DensityPiece<Point>> pieces(region.size());
+    for (std::size_t r = 0; r < region.size(); ++r) pieces[r].polygon = region[r], pieces[r].values[0] = 1;
+    return pieces;
+  }();
+  const PiecewiseDensity<G> validated(geometry_, region_pieces, {}, quadrature_order_, field);
+  PiecewiseDensity<G> result(geometry_, {}, field_, quadrature_order_, name_);
+  std::vector<Eigen::Vector3d> clipped, scratch;
+  for (std::size_t r = 0; r < validated.piece_count(); ++r) {
+    query(validated.cap_centers_[r], validated.cap_radii_[r], [&](std::size_t piece) {
+      const auto piece_corners = corners(piece);
+      clipped.assign(piece_corners.begin(), piece_corners.end());
+      for (std::uint32_t k = validated.offsets_[r]; k < validated.offsets_[r + 1] && clipped.size() >= 3; ++k) {
+        detail::clip_homogeneous(clipped, validated.normals_[k], scratch);
+        std::swap(clipped, scratch);
+      }
+      // Drop slivers of round-off size.
+      if (clipped.size() < 3) return;
+      double twice_area = 0;
+      for (std::size_t k = 1; k + 1 < clipped.size(); ++k)
+        twice_area += clipped[0].cross(clipped[k]).dot(clipped[k + 1]);
+      if (!(twice_area > 1e-15 * cap_radii_[piece] * cap_radii_[piece])) return;
+      result.add_unit_piece(clipped, kinds_[piece], constants_[piece], numerators_[piece], denominators_[piece]);
+    });
+  }
+  result.build_index();
   return result;
 }
 
