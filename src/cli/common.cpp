@@ -1,5 +1,8 @@
 #include "common.hpp"
 
+#include <filesystem>
+#include <fstream>
+
 #include <sys/resource.h>
 #include <algorithm>
 #include <cmath>
@@ -112,12 +115,50 @@ std::optional<Eigen::VectorXd> read_weights(const json& problem, std::size_t sit
   return weights;
 }
 
-void read_uniform_density(const json& problem, const std::string& supported) {
-  if (!problem.contains("density")) return;
-  const json& density = problem["density"];
-  check_known_fields(density, "density", {"type"});
-  if (!density.contains("type") || density["type"] != "uniform")
-    throw InputError("density.type", "unknown density type (supported: " + supported + ")");
+json read_json_file(const std::string& path, const std::string& what) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, "cannot open " + what);
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  try {
+    return json::parse(buffer.str());
+  } catch (const json::parse_error& e) {
+    throw InputError(path, std::string("malformed JSON: ") + e.what());
+  }
+}
+
+std::string resolve_path(const RunContext& context, const std::string& file) {
+  const std::filesystem::path path(file);
+  if (path.is_absolute() || context.base_directory.empty()) return file;
+  return (std::filesystem::path(context.base_directory) / path).string();
+}
+
+std::string read_choice(const json& object, const std::string& key, const std::string& field,
+                        const std::vector<std::string>& allowed, const std::string& fallback) {
+  std::string list;
+  for (const auto& a : allowed) list += (list.empty() ? "\"" : ", \"") + a + "\"";
+  if (!object.contains(key)) {
+    if (fallback.empty()) throw InputError(field, "missing (one of " + list + ")");
+    return fallback;
+  }
+  const json& value = object[key];
+  if (value.is_string())
+    for (const auto& a : allowed)
+      if (value.get<std::string>() == a) return a;
+  throw InputError(field, "must be one of " + list + ", got " + value.dump());
+}
+
+GrayImage read_density_image(const json& density, const RunContext& context) {
+  if (!density.contains("file") || !density["file"].is_string())
+    throw InputError("density.file", "an image density needs a file name (PGM or PNG)");
+  return read_image(resolve_path(context, density["file"].get<std::string>()));
+}
+
+double read_scale(const json& density) {
+  if (!density.contains("scale")) return 1;
+  const double scale = read_number(density["scale"], "density.scale");
+  if (!(scale > 0)) throw InputError("density.scale", "must be positive");
+  return scale;
 }
 
 double peak_rss_mb() {

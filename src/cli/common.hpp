@@ -12,7 +12,9 @@
 
 #include "registry.hpp"
 #include "sdot/error.hpp"
+#include "sdot/image.hpp"
 #include "sdot/options.hpp"
+#include "sdot/piecewise_density.hpp"
 #include "sdot/solver.hpp"
 
 namespace sdot::cli {
@@ -36,8 +38,83 @@ Eigen::VectorXd read_masses(const json& problem, std::size_t site_count);
 /// The optional initial weights.
 std::optional<Eigen::VectorXd> read_weights(const json& problem, std::size_t site_count);
 
-/// Checks the optional "density" field; only {"type": "uniform"} is supported by the command.
-void read_uniform_density(const json& problem, const std::string& supported = "\"uniform\"");
+/// Reads and parses a JSON file; InputError naming the path (`what` says which file it is).
+json read_json_file(const std::string& path, const std::string& what);
+/// A file name from a problem, relative to the problem file's directory unless absolute.
+std::string resolve_path(const RunContext& context, const std::string& file);
+/// A string field of `object` (or `fallback` when absent), one of `allowed`.
+std::string read_choice(const json& object, const std::string& key, const std::string& field,
+                        const std::vector<std::string>& allowed, const std::string& fallback);
+/// A density's image: `density.file` resolved and read.
+GrayImage read_density_image(const json& density, const RunContext& context);
+/// A density's "scale" (default 1).
+double read_scale(const json& density);
+
+/// The problem's "density" (docs/file-formats.md): empty for "uniform" (or none), else a
+/// piecewise density. `read_vertex(value, field)` converts one mesh vertex of the geometry;
+/// `image(image, density)` builds an image density (it throws for geometries without images).
+template <class G, class ReadVertex, class ImageDensity>
+std::optional<PiecewiseDensity<G>> read_density(const G& geometry, const json& problem, const RunContext& context,
+                                                ReadVertex&& read_vertex, ImageDensity&& image) {
+  if (!problem.contains("density")) return std::nullopt;
+  const json& density = problem["density"];
+  if (!density.is_object()) throw InputError("density", "must be an object such as {\"type\": \"uniform\"}");
+  const std::string type = read_choice(density, "type", "density.type", {"uniform", "mesh", "image"}, "");
+  if (type == "uniform") {
+    check_known_fields(density, "density", {"type"});
+    return std::nullopt;
+  }
+  if (type == "image") {
+    check_known_fields(density, "density", {"type", "file", "interpolation", "rectangle", "scale"});
+    return image(read_density_image(density, context), density);
+  }
+  check_known_fields(density, "density",
+                     {"type", "file", "vertices", "triangles", "values", "triangle_values", "quadrature_order"});
+  json file_content;
+  const json* mesh = &density;
+  std::string prefix = "density";
+  if (density.contains("file")) {
+    if (!density["file"].is_string()) throw InputError("density.file", "must be a file name");
+    const std::string path = resolve_path(context, density["file"].get<std::string>());
+    file_content = read_json_file(path, "the density mesh file");
+    if (!file_content.is_object()) throw InputError(path, "must be a JSON object with vertices, triangles and values");
+    check_known_fields(file_content, path, {"vertices", "triangles", "values", "triangle_values"});
+    mesh = &file_content;
+    prefix = path;
+  }
+  for (const char* key : {"vertices", "triangles"})
+    if (!mesh->contains(key)) throw InputError(prefix + "." + key, "missing");
+  const json& vertex_array = (*mesh)["vertices"];
+  if (!vertex_array.is_array()) throw InputError(prefix + ".vertices", "must be an array of points");
+  std::vector<typename G::Point> vertices;
+  for (std::size_t i = 0; i < vertex_array.size(); ++i)
+    vertices.push_back(read_vertex(vertex_array[i], indexed(prefix + ".vertices", i)));
+  const json& triangle_array = (*mesh)["triangles"];
+  if (!triangle_array.is_array()) throw InputError(prefix + ".triangles", "must be an array of [i, j, k]");
+  std::vector<std::array<int, 3>> triangles;
+  for (std::size_t t = 0; t < triangle_array.size(); ++t) {
+    const json& tri = triangle_array[t];
+    if (!(tri.is_array() && tri.size() == 3 && tri[0].is_number_integer() && tri[1].is_number_integer() &&
+          tri[2].is_number_integer()))
+      throw InputError(indexed(prefix + ".triangles", t), "must be an array of 3 vertex indices");
+    triangles.push_back({tri[0].get<int>(), tri[1].get<int>(), tri[2].get<int>()});
+  }
+  const bool per_vertex = mesh->contains("values"), per_triangle = mesh->contains("triangle_values");
+  if (per_vertex == per_triangle)
+    throw InputError(prefix, "give exactly one of \"values\" (per vertex) and \"triangle_values\" (per triangle)");
+  const std::string values_key = per_vertex ? "values" : "triangle_values";
+  const Eigen::VectorXd values = read_vector((*mesh)[values_key], prefix + "." + values_key);
+  const std::span<const double> value_span(values.data(), static_cast<std::size_t>(values.size()));
+  if (per_triangle)
+    return mesh_density_per_triangle(geometry, std::span<const typename G::Point>(vertices),
+                                     std::span<const std::array<int, 3>>(triangles), value_span, prefix);
+  const int order = density.contains("quadrature_order")
+                        ? static_cast<int>(read_number(density["quadrature_order"], "density.quadrature_order"))
+                        : 5;
+  if (order < 1 || order > 64) throw InputError("density.quadrature_order", "must be an integer in 1..64");
+  return mesh_density(geometry, std::span<const typename G::Point>(vertices),
+                      std::span<const std::array<int, 3>>(triangles), value_span, order, prefix);
+}
 
 /// Peak resident set size of this process in MB.
 double peak_rss_mb();
@@ -84,14 +161,17 @@ json result_json(const std::string& geometry, const Result<Point>& result) {
   return out;
 }
 
-/// Solves a parsed problem with the uniform density, its masses, options and initial weights,
-/// and fills the command's output (the picture through `draw` when asked for).
+/// Solves a parsed problem with its density (uniform when empty), masses, options and initial
+/// weights, and fills the command's output (the picture through `draw` when asked for).
 template <class G, class Draw>
-SolveOutput solve_uniform_problem(const G& geometry, std::span<const typename G::Point> sites, const json& problem,
-                                  const RunContext& context, Draw&& draw) {
+SolveOutput solve_problem(const G& geometry, const std::optional<PiecewiseDensity<G>>& density,
+                          std::span<const typename G::Point> sites, const json& problem, const RunContext& context,
+                          Draw&& draw) {
   const Options options = read_options(problem, context.quiet);
-  const auto result = solve(geometry, UniformDensity{}, sites, read_masses(problem, sites.size()), options,
-                            read_weights(problem, sites.size()));
+  const auto masses = read_masses(problem, sites.size());
+  const auto weights = read_weights(problem, sites.size());
+  const auto result = density ? solve(geometry, *density, sites, masses, options, weights)
+                              : solve(geometry, UniformDensity{}, sites, masses, options, weights);
   SolveOutput output;
   output.result = result_json(std::string(G::name()), result);
   output.converged = result.summary.usable();

@@ -32,18 +32,6 @@ void write_file(const std::filesystem::path& path, const std::string& content) {
   if (!out) throw sdot::Error("cannot write " + path.string());
 }
 
-json read_problem(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw sdot::InputError(path, "cannot open the problem file");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  try {
-    return json::parse(buffer.str());
-  } catch (const json::parse_error& e) {
-    throw sdot::InputError(path, std::string("malformed JSON: ") + e.what());
-  }
-}
-
 const sdot::cli::GeometryCommands& find_geometry(const sdot::cli::Registry& registry, const json& name_value) {
   if (!name_value.is_string()) throw sdot::InputError("geometry", "must be a string");
   const std::string name = name_value.get<std::string>();
@@ -77,7 +65,8 @@ int run_solve(const sdot::cli::Registry& registry, int argc, char** argv) {
       throw UsageError("more than one problem file");
   }
   if (problem_path.empty()) throw UsageError("solve needs a PROBLEM.json");
-  const json problem = read_problem(problem_path);
+  const json problem = sdot::cli::read_json_file(problem_path, "the problem file");
+  context.base_directory = std::filesystem::path(problem_path).parent_path().string();
   if (!problem.is_object()) throw sdot::InputError(problem_path, "the problem must be a JSON object");
   if (!problem.contains("geometry")) throw sdot::InputError("geometry", "missing (e.g. \"plane\")");
   const auto& commands = find_geometry(registry, problem["geometry"]);

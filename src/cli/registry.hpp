@@ -13,6 +13,7 @@ namespace sdot::cli {
 struct RunContext {
   bool quiet = false;
   bool want_svg = false;
+  std::string base_directory;  ///< relative file names in a problem are relative to it
 };
 
 struct SolveOutput {

@@ -155,10 +155,18 @@ SolveOutput solve_hyperbolic(const json& problem, const RunContext& context) {
   if (!problem.contains("sites")) throw InputError("sites", "missing");
   const auto sites = to_points(read_points(problem["sites"], "sites", dimension(sites_model)), sites_model, "sites");
   if (sites.empty()) throw InputError("sites", "at least one site is needed");
-  read_uniform_density(problem, "\"uniform\", the hyperbolic area");
-  SolveOutput output =
-      solve_uniform_problem(geometry, std::span<const Point>(sites), problem, context,
-                            [&](const Result<Point>& result) { return draw(geometry, sites, result); });
+  // Mesh vertices are in the sites' model.
+  const auto density = read_density(
+      geometry, problem, context,
+      [&](const json& value, const std::string& field) {
+        const auto points = read_points(json::array({value}), field, dimension(sites_model));
+        return Hyperbolic::from_model(sites_model, points[0], field);
+      },
+      [](const GrayImage&, const json&) -> PiecewiseDensity<Hyperbolic> {
+        throw InputError("density.type", "image densities are available on the plane and the sphere; use a mesh");
+      });
+  SolveOutput output = solve_problem(geometry, density, std::span<const Point>(sites), problem, context,
+                                     [&](const Result<Point>& result) { return draw(geometry, sites, result); });
   // Centroids are hyperboloid points; also give them in the sites' model.
   output.result["sites_model"] = model_name(sites_model);
   if (sites_model != Model::hyperboloid) {

@@ -5,6 +5,7 @@
 #include "common.hpp"
 #include "registry.hpp"
 #include "sdot/geometries/plane.hpp"
+#include "sdot/geometries/plane_densities.hpp"
 #include "sdot/solver.hpp"
 
 namespace sdot::cli {
@@ -19,16 +20,54 @@ std::vector<Point> to_points(const std::vector<Eigen::VectorXd>& points) {
   return result;
 }
 
-std::string draw(const Plane& plane, std::span<const Point> sites, const Result<Point>& result) {
+/// A domain with holes: {"outer": […], "holes": [[…], …]} or {"polygons": [{"outer", "holes"}, …]}.
+PlaneRegion read_region(const json& domain) {
+  auto read_polygon = [](const json& object, const std::string& field) {
+    check_known_fields(object, field, {"outer", "holes"});
+    if (!object.contains("outer")) throw InputError(field + ".outer", "missing");
+    PolygonWithHoles polygon;
+    polygon.outer = to_points(read_points(object["outer"], field + ".outer", 2));
+    if (object.contains("holes")) {
+      const json& holes = object["holes"];
+      if (!holes.is_array()) throw InputError(field + ".holes", "must be an array of rings");
+      for (std::size_t h = 0; h < holes.size(); ++h)
+        polygon.holes.push_back(to_points(read_points(holes[h], indexed(field + ".holes", h), 2)));
+    }
+    return polygon;
+  };
+  std::vector<PolygonWithHoles> polygons;
+  if (domain.contains("polygons")) {
+    check_known_fields(domain, "domain", {"polygons"});
+    const json& list = domain["polygons"];
+    if (!list.is_array() || list.empty()) throw InputError("domain.polygons", "must be a non-empty array");
+    for (std::size_t i = 0; i < list.size(); ++i)
+      polygons.push_back(read_polygon(list[i], indexed("domain.polygons", i)));
+    return PlaneRegion(std::move(polygons), "domain");
+  }
+  polygons.push_back(read_polygon(domain, "domain"));
+  return PlaneRegion(std::move(polygons), "domain");
+}
+
+std::string draw(const Plane& plane, const std::optional<PlaneRegion>& region, std::span<const Point> sites,
+                 const Result<Point>& result) {
   Eigen::Vector2d low = Eigen::Vector2d::Constant(INFINITY), high = -low;
   for (const auto& v : plane.domain().vertices()) low = low.cwiseMin(v), high = high.cwiseMax(v);
   const double margin = 0.03 * (high - low).maxCoeff();
   Svg svg(low.x() - margin, low.y() - margin, high.x() + margin, high.y() + margin);
   const double stroke = std::clamp(3.0 / std::sqrt(static_cast<double>(sites.size())), 0.2, 1.0);
-  svg.polygon(plane.domain().vertices(), "fill=\"#f4f4f4\" stroke=\"black\" stroke-width=\"1.5\"");
+  if (region) {
+    for (const auto& polygon : region->polygons()) {
+      svg.polygon(polygon.outer, "fill=\"#f4f4f4\" stroke=\"black\" stroke-width=\"1.5\"");
+    }
+  } else {
+    svg.polygon(plane.domain().vertices(), "fill=\"#f4f4f4\" stroke=\"black\" stroke-width=\"1.5\"");
+  }
   for (const auto& cell : result.diagram.cells)
     if (!cell.empty())
       svg.polygon(cell.vertices, fmt::format("fill=\"none\" stroke=\"#3060a0\" stroke-width=\"{:.2f}\"", stroke));
+  if (region)  // holes over the cells, which extend over the domain's bounding box
+    for (const auto& polygon : region->polygons())
+      for (const auto& hole : polygon.holes) svg.polygon(hole, "fill=\"white\" stroke=\"black\" stroke-width=\"1.5\"");
   const double r = dot_radius_px(sites.size());
   for (const auto& c : result.centroids) svg.circle(c, r * 0.8, "fill=\"#20a040\"");
   for (const auto& s : sites) svg.circle(s, r, "fill=\"#d03020\"");
@@ -43,13 +82,37 @@ SolveOutput solve_plane(const json& problem, const RunContext& context) {
   const auto sites = to_points(read_points(problem["sites"], "sites", 2));
   if (sites.empty()) throw InputError("sites", "at least one site is needed");
   Plane plane;
-  if (problem.contains("domain")) {
+  std::optional<PlaneRegion> region;
+  if (problem.contains("domain") && problem["domain"].is_object()) {
+    region = read_region(problem["domain"]);
+    plane = Plane(
+        ConvexPolygon::rectangle(region->lower().x(), region->lower().y(), region->upper().x(), region->upper().y()));
+  } else if (problem.contains("domain")) {
     std::vector<Eigen::Vector2d> vertices = to_points(read_points(problem["domain"], "domain", 2));
     plane = Plane(ConvexPolygon(std::move(vertices), "domain"));
   }
-  read_uniform_density(problem);
-  return solve_uniform_problem(plane, std::span<const Point>(sites), problem, context,
-                               [&](const Result<Point>& result) { return draw(plane, sites, result); });
+  auto density = read_density(
+      plane, problem, context,
+      [](const json& value, const std::string& field) {
+        return to_points(read_points(json::array({value}), field, 2))[0];
+      },
+      [&](const GrayImage& image, const json& density_json) {
+        const std::string interpolation =
+            read_choice(density_json, "interpolation", "density.interpolation", {"constant", "bilinear"}, "bilinear");
+        Eigen::AlignedBox2d rectangle;
+        for (const auto& v : plane.domain().vertices()) rectangle.extend(v);
+        if (density_json.contains("rectangle")) {
+          const Eigen::VectorXd r = read_vector(density_json["rectangle"], "density.rectangle");
+          if (r.size() != 4) throw InputError("density.rectangle", "must be [x0, y0, x1, y1]");
+          rectangle = Eigen::AlignedBox2d(Eigen::Vector2d(r[0], r[1]), Eigen::Vector2d(r[2], r[3]));
+        }
+        return image_density(plane, image, rectangle,
+                             interpolation == "constant" ? ImageInterpolation::constant : ImageInterpolation::bilinear,
+                             read_scale(density_json));
+      });
+  if (region) density = density ? density->restricted_to(region->convex_pieces()) : region_density(plane, *region);
+  return solve_problem(plane, density, std::span<const Point>(sites), problem, context,
+                       [&](const Result<Point>& result) { return draw(plane, region, sites, result); });
 }
 
 json bench_plane(const BenchRequest& request) {

@@ -164,3 +164,27 @@ TEST(PlaneDensity, DomainWithHolesAndSitesInsideTheHoles) {
 }
 
 }  // namespace sdot::testing
+namespace sdot::testing {
+
+TEST(PlaneDensity, RestrictedImageHessianMatchesFiniteDifferences) {
+  // Pixels cut by the region's pieces: clipping through pixel corners once produced corner
+  // duplicates whose edge had no direction, and the pieces were lost from the masses only.
+  const PlaneRegion region({PolygonWithHoles{{{0, 0}, {4, 0}, {4, 4}, {0, 4}}, {{{1, 1}, {1, 2}, {2, 2}, {2, 1}}}}});
+  const Plane plane(ConvexPolygon::rectangle(0, 0, 4, 4));
+  const GrayImage image = test_image(32, 32, 5);
+  const auto sites = sites_in_box(40, 0, 0, 4, 4, 8);
+  const auto span = std::span<const Plane::Point>(sites);
+  for (auto interpolation : {ImageInterpolation::constant, ImageInterpolation::bilinear}) {
+    const auto restricted =
+        image_density(plane, image, Eigen::AlignedBox2d(Eigen::Vector2d(0, 0), Eigen::Vector2d(4, 4)), interpolation)
+            .restricted_to(region.convex_pieces());
+    if (interpolation == ImageInterpolation::constant) EXPECT_EQ(restricted.piece_count(), 32u * 32u - 8u * 8u);
+    const double error =
+        hessian_fd_error(plane, restricted, span, solved_weights(plane, restricted, span, equal_masses(40, 1.0)), 1e-7);
+    std::printf("  restricted %s image: Hessian vs finite differences %.2e\n",
+                interpolation == ImageInterpolation::constant ? "constant" : "bilinear", error);
+    EXPECT_LT(error, 1e-6);
+  }
+}
+
+}  // namespace sdot::testing

@@ -7,6 +7,7 @@
 #include "common.hpp"
 #include "registry.hpp"
 #include "sdot/geometries/sphere.hpp"
+#include "sdot/geometries/sphere_densities.hpp"
 #include "sdot/solver.hpp"
 
 namespace sdot::cli {
@@ -162,9 +163,24 @@ SolveOutput solve_sphere(const json& problem, const RunContext& context) {
     else
       throw InputError("builder", "must be \"automatic\", \"clipping\" or \"hull\"");
   }
-  read_uniform_density(problem);
-  return solve_uniform_problem(sphere, std::span<const Point>(sites), problem, context,
-                               [&](const Result<Point>& result) { return draw(sphere, sites, result); });
+  const auto density = read_density(
+      sphere, problem, context,
+      [](const json& value, const std::string& field) {
+        const Point p = read_direction(value, field);
+        if (!(p.norm() > 0)) throw InputError(field, "is the zero vector");
+        return Point(p.normalized());
+      },
+      [&](const GrayImage& image, const json& density_json) {
+        const std::string interpolation =
+            read_choice(density_json, "interpolation", "density.interpolation", {"constant", "linear"}, "linear");
+        if (density_json.contains("rectangle"))
+          throw InputError("density.rectangle", "the sphere's image is equirectangular over the whole sphere");
+        return equirectangular_density(
+            sphere, image, interpolation == "constant" ? ImageInterpolation::constant : ImageInterpolation::linear,
+            read_scale(density_json));
+      });
+  return solve_problem(sphere, density, std::span<const Point>(sites), problem, context,
+                       [&](const Result<Point>& result) { return draw(sphere, sites, result); });
 }
 
 std::vector<Point> uniform_sites(std::size_t n, unsigned seed) {

@@ -107,20 +107,28 @@ template <sdot::ProjectiveGeometry G>
 void sdot::PiecewiseDensity<G>::add_unit_piece(const std::vector<Eigen::Vector3d>& polygon, PieceKind kind,
                                                double constant, const Eigen::Vector3d& numerator,
                                                const Eigen::Vector3d& denominator) {
+  // Consecutive (nearly) equal corners, e.g. where a clip passes through a corner, would give
+  // an edge without a direction.
+  thread_local std::vector<Eigen::Vector3d> corners;
+  corners.clear();
+  for (const auto& v : polygon)
+    if (corners.empty() || corners.back().cross(v).norm() > 1e-15) corners.push_back(v);
+  while (corners.size() > 1 && corners.back().cross(corners.front()).norm() <= 1e-15) corners.pop_back();
+  if (corners.size() < 3) return;
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for (const auto& v : polygon) sum += v;
+  for (const auto& v : corners) sum += v;
   const Eigen::Vector3d center = sum.normalized();
   double radius = 0;
-  for (const auto& v : polygon) radius = std::max(radius, detail::angle_between(center, v));
+  for (const auto& v : corners) radius = std::max(radius, detail::angle_between(center, v));
   kinds_.push_back(kind);
   constants_.push_back(constant);
   numerators_.push_back(numerator);
   denominators_.push_back(denominator);
   cap_centers_.push_back(center);
   cap_radii_.push_back(radius);
-  for (std::size_t k = 0; k < polygon.size(); ++k) {
-    corners_.push_back(polygon[k]);
-    normals_.push_back(polygon[k].cross(polygon[(k + 1) % polygon.size()]).normalized());
+  for (std::size_t k = 0; k < corners.size(); ++k) {
+    corners_.push_back(corners[k]);
+    normals_.push_back(corners[k].cross(corners[(k + 1) % corners.size()]).normalized());
   }
   offsets_.push_back(static_cast<std::uint32_t>(corners_.size()));
 }
