@@ -53,6 +53,12 @@ Run run(const std::string& arguments) {
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "stdout"), slurp(dir / "stderr")};
 }
 
+std::string fmt_pair(double x, double y) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, "[%.6f,%.6f]", x, y);
+  return buffer;
+}
+
 fs::path write(const std::string& name, const std::string& content) {
   const fs::path path = scratch() / name;
   std::ofstream(path) << content;
@@ -120,6 +126,7 @@ class CliBadInput : public ::testing::TestWithParam<BadInput> {};
 
 TEST_P(CliBadInput, ExitsWithCode2AndAOneLineReason) {
   const auto& c = GetParam();
+  write("tiny.pgm", "P2\n3 2\n255\n0 1 2 3 4 5\n");  // for cases that need a readable image
   const auto path = write(std::string(c.name) + ".json", c.problem);
   const auto r = run("solve " + path.string() + " --quiet");
   EXPECT_EQ(r.exit_code, 2) << r.err;
@@ -156,8 +163,50 @@ INSTANTIATE_TEST_SUITE_P(
                  "tolerance: must be a positive number"},
         BadInput{"unknown_field", R"({"geometry": "plane", "sites": [[0.1,0.1]], "tolerence": 1e-9})",
                  "tolerence: unknown field"},
-        BadInput{"unknown_density", R"({"geometry": "plane", "sites": [[0.1,0.1]], "density": {"type": "image"}})",
-                 "density.type: unknown density type"},
+        BadInput{"unknown_density", R"({"geometry": "plane", "sites": [[0.1,0.1]], "density": {"type": "blob"}})",
+                 "density.type: must be one of \"uniform\", \"mesh\", \"image\", got \"blob\""},
+        BadInput{"image_without_file", R"({"geometry": "plane", "sites": [[0.1,0.1]], "density": {"type": "image"}})",
+                 "density.file: an image density needs a file name"},
+        BadInput{"image_missing_file",
+                 R"({"geometry": "plane", "sites": [[0.1,0.1]], "density": {"type": "image", "file": "nowhere.png"}})",
+                 "nowhere.png"},
+        BadInput{"mesh_index", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.6,0.6]], "density": {"type": "mesh",
+                     "vertices": [[0,0],[1,0],[1,1],[0,1]], "triangles": [[0,1,2],[0,2,4]], "values": [1,1,1,1]}})",
+                 "density.triangles[1]: vertex index 4 is out of range"},
+        BadInput{"mesh_negative_value",
+                 R"({"geometry": "plane", "sites": [[0.1,0.1],[0.6,0.6]], "density": {"type": "mesh",
+                     "vertices": [[0,0],[1,0],[1,1],[0,1]], "triangles": [[0,1,2],[0,2,3]], "values": [1,1,-2,1]}})",
+                 "density.values[2]: must be a finite number >= 0"},
+        BadInput{"mesh_two_value_kinds", R"({"geometry": "plane", "sites": [[0.1,0.1]], "density": {"type": "mesh",
+                     "vertices": [[0,0],[1,0],[1,1]], "triangles": [[0,1,2]], "values": [1,1,1], "triangle_values": [1]}})",
+                 "give exactly one of \"values\" (per vertex) and \"triangle_values\""},
+        BadInput{"mesh_bad_vertex", R"({"geometry": "sphere", "sites": [[0,0,1],[0,1,-1],[1,0,-1],[-1,-1,-1]],
+                     "density": {"type": "mesh", "vertices": [[0,0,1],[0,0,0],[1,0,0]], "triangles": [[0,1,2]], "values": [1,1,1]}})",
+                 "density.vertices[1]: is the zero vector"},
+        BadInput{"hyperbolic_image",
+                 R"({"geometry": "hyperbolic", "domain": {"model": "klein", "vertices": [[0,0],[0.5,0],[0.2,0.5]]},
+                     "sites": [[0.1,0.1]], "density": {"type": "image", "file": "x.pgm"}})",
+                 "x.pgm"},
+        BadInput{"sphere_cap_mesh",
+                 R"({"geometry": "sphere", "domain": {"type": "cap", "center": [0,0,1], "angle": 0.5},
+                     "sites": [[0,0.1,1],[0.1,0,1],[-0.1,-0.1,1]],
+                     "density": {"type": "mesh", "vertices": [[0,0,1],[1,0,0],[0,1,0],[-1,0,0],[0,-1,0]],
+                                 "triangles": [[0,1,2],[0,2,3],[0,3,4],[0,4,1]], "values": [1,1,1,1,1]}})",
+                 "cap domain is not supported"},
+        BadInput{"sphere_unreachable_site",
+                 R"({"geometry": "sphere", "sites": [[1,0,0.1],[1,0.1,-0.1],[1,-0.1,-0.1],[-1,0,0]],
+                     "density": {"type": "mesh", "vertices": [[1,0,0],[1,1,0],[1,0,1],[1,-1,0],[1,0,-1]],
+                                 "triangles": [[0,1,2],[0,2,3],[0,3,4],[0,4,1]], "values": [1,1,1,1,1]}})",
+                 "sites[3]: the cell of this site cannot receive mass"},
+        BadInput{"hole_outside", R"({"geometry": "plane", "sites": [[0.1,0.1]],
+                     "domain": {"outer": [[0,0],[1,0],[1,1],[0,1]], "holes": [[[2,2],[3,2],[3,3]]]}})",
+                 "domain.holes[0]"},
+        BadInput{"self_intersecting_domain", R"({"geometry": "plane", "sites": [[0.1,0.1]],
+                     "domain": {"outer": [[0,0],[1,1],[1,0],[0,1]]}})",
+                 "domain.outer"},
+        BadInput{"bad_interpolation", R"({"geometry": "plane", "sites": [[0.1,0.1]],
+                     "density": {"type": "image", "file": "tiny.pgm", "interpolation": "cubic"}})",
+                 "density.interpolation: must be one of"},
         BadInput{"empty_sites", R"({"geometry": "plane", "sites": []})", "sites: at least one site is needed"},
         BadInput{"not_object", R"([1, 2, 3])", "the problem must be a JSON object"},
         BadInput{"hyperbolic_without_domain", R"({"geometry": "hyperbolic", "sites": [[0.1,0.1],[0.2,0.3]]})",
@@ -171,6 +220,68 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"sphere_zero_site", R"({"geometry": "sphere", "sites": [[0,0,1],[0,0,0],[1,0,-1],[-1,0,-1]]})",
                  "sites[1]"}),
     [](const ::testing::TestParamInfo<BadInput>& param_info) { return std::string(param_info.param.name); });
+
+TEST(Cli, PlaneDomainWithHolesAndImageDensity) {
+  // A square with two holes; an image density given relative to the problem file.
+  std::string pgm = "P2\n8 8\n255\n";
+  for (int k = 0; k < 64; ++k) pgm += std::to_string(40 + 3 * k) + " ";
+  write("ramp.pgm", pgm + "\n");
+  std::string sites;
+  for (int i = 0; i < 12; ++i)
+    for (int j = 0; j < 12; ++j) sites += (sites.empty() ? "" : ",") + fmt_pair((i + 0.5) / 3, (j + 0.37) / 3);
+  const std::string domain =
+      R"("domain": {"outer": [[0,0],[4,0],[4,4],[0,4]], "holes": [[[1,1],[2,1],[2,2],[1,2]], [[2.5,2.5],[3.5,2.5],[3.5,3.5],[2.5,3.5]]]})";
+  const auto uniform = write("holes.json", R"({"geometry": "plane", "sites": [)" + sites + "], " + domain + "}");
+  const auto svg_path = scratch() / "holes.svg";
+  auto r = run("solve " + uniform.string() + " --quiet --svg " + svg_path.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  json result = json::parse(r.out);
+  EXPECT_EQ(result["status"], "converged");
+  EXPECT_NEAR(result["source_mass"].get<double>(), 14, 1e-12);
+  EXPECT_NE(result["message"].get<std::string>().find("continuation"), std::string::npos);  // sites in the holes
+  EXPECT_NE(slurp(svg_path).find("fill=\"white\""), std::string::npos);                     // the holes drawn
+  const auto image = write("holes_image.json",
+                           R"({"geometry": "plane", "sites": [)" + sites + "], " + domain +
+                               R"(, "density": {"type": "image", "file": "ramp.pgm", "interpolation": "constant"}})");
+  r = run("solve " + image.string() + " --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  result = json::parse(r.out);
+  EXPECT_EQ(result["status"], "converged");
+  double expected = 0;  // pixels are 0.5 × 0.5; the holes cover whole pixels
+  for (int row = 0; row < 8; ++row)
+    for (int column = 0; column < 8; ++column) {
+      const double x = (column + 0.5) / 2, y = 4 - (row + 0.5) / 2;
+      const bool in_hole = (x > 1 && x < 2 && y > 1 && y < 2) || (x > 2.5 && x < 3.5 && y > 2.5 && y < 3.5);
+      if (!in_hole) expected += (40 + 3 * (row * 8 + column)) / 255.0 * 0.25;
+    }
+  EXPECT_NEAR(result["source_mass"].get<double>(), expected, 1e-12 * expected);
+}
+
+TEST(Cli, MeshDensitiesOnTheSphereAndInH2) {
+  // The octahedron's faces with ρ = 1 + 0.9 z at the vertices, from a mesh file.
+  write("octahedron.json", R"({"vertices": [[1,0,0],[-1,0,0],[0,1,0],[0,-1,0],[0,0,1],[0,0,-1]],
+      "triangles": [[0,2,4],[2,1,4],[1,3,4],[3,0,4],[2,0,5],[1,2,5],[3,1,5],[0,3,5]],
+      "values": [1, 1, 1, 1, 1.9, 0.1]})");
+  const auto sphere = write("sphere_mesh.json", R"({"geometry": "sphere",
+      "sites": [[0,0,1],[0,0,-1],[1,0,0],[-1,0,0],[0,1,0],[0,-1,0],[0.5,0.5,0.5],[-0.5,0.5,-0.5]],
+      "density": {"type": "mesh", "file": "octahedron.json"}, "tolerance": 1e-11})");
+  auto r = run("solve " + sphere.string() + " --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  json result = json::parse(r.out);
+  EXPECT_EQ(result["status"], "converged");
+  EXPECT_LE(result["max_relative_mass_error"].get<double>(), 1e-11);
+  // The mesh tiles the sphere and the interpolant's mean over the octants is 1 by symmetry.
+  EXPECT_NEAR(result["source_mass"].get<double>(), 4 * M_PI, 1e-10);
+  const auto h2 = write("h2_mesh.json", R"({"geometry": "hyperbolic",
+      "domain": {"model": "klein", "vertices": [[-0.5,-0.5],[0.5,-0.5],[0.5,0.5],[-0.5,0.5]]},
+      "sites": [[-0.2,-0.2],[0.25,-0.1],[0.1,0.3],[-0.3,0.2],[0,0]],
+      "density": {"type": "mesh", "vertices": [[-0.5,-0.5],[0.5,-0.5],[0.5,0.5],[-0.5,0.5]],
+                  "triangles": [[0,1,2],[0,2,3]], "values": [1, 2, 3, 0]}})");
+  r = run("solve " + h2.string() + " --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  result = json::parse(r.out);
+  EXPECT_EQ(result["status"], "converged");
+}
 
 TEST(Cli, UsageErrors) {
   EXPECT_EQ(run("").exit_code, 2);

@@ -45,7 +45,16 @@ PlaneRegion read_region(const json& domain) {
     return PlaneRegion(std::move(polygons), "domain");
   }
   polygons.push_back(read_polygon(domain, "domain"));
-  return PlaneRegion(std::move(polygons), "domain");
+  try {
+    return PlaneRegion(std::move(polygons), "domain");
+  } catch (const InputError& e) {
+    // The single-polygon form has no "polygons" list: name the fields as written.
+    const std::string prefix = "domain.polygons[0]";
+    std::string field = e.field();
+    if (field.rfind(prefix, 0) == 0) field = "domain" + field.substr(prefix.size());
+    const std::string message = e.what();
+    throw InputError(field, message.substr(std::min(message.size(), e.field().size() + 2)));
+  }
 }
 
 std::string draw(const Plane& plane, const std::optional<PlaneRegion>& region, std::span<const Point> sites,

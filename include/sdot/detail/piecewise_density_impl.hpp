@@ -236,11 +236,11 @@ sdot::CellIntegrals<typename G::Point> sdot::PiecewiseDensity<G>::integrate_piec
     }
     case PieceKind::linear: {
       const ScalarField<Point> rho = [this, piece](const Point& x) { return local_value(piece, x); };
-      return geometry.integrate(polygon, site, rho, quadrature_order_);
+      return geometry.integrate(polygon, site, rho, piece_order(piece));
     }
     case PieceKind::field:
     default:
-      return geometry.integrate(polygon, site, field_, quadrature_order_);
+      return geometry.integrate(polygon, site, field_, piece_order(piece));
   }
 }
 
@@ -336,7 +336,7 @@ double sdot::PiecewiseDensity<G>::facet_weight(const G& geometry, const Point& a
         break;
       }
       case PieceKind::field:
-        result += share * geometry.facet_weight(pa, pb, site_i, weight_i, site_j, weight_j, field_, quadrature_order_);
+        result += share * geometry.facet_weight(pa, pb, site_i, weight_i, site_j, weight_j, field_, piece_order(piece));
         break;
     }
   });
