@@ -224,11 +224,11 @@ INSTANTIATE_TEST_SUITE_P(
 TEST(Cli, PlaneDomainWithHolesAndImageDensity) {
   // A square with two holes; an image density given relative to the problem file.
   std::string pgm = "P2\n8 8\n255\n";
-  for (int k = 0; k < 64; ++k) pgm += std::to_string(40 + 3 * k) + " ";
+  for (int k = 0; k < 64; ++k) pgm.append(std::to_string(40 + 3 * k)).append(" ");
   write("ramp.pgm", pgm + "\n");
   std::string sites;
   for (int i = 0; i < 12; ++i)
-    for (int j = 0; j < 12; ++j) sites += (sites.empty() ? "" : ",") + fmt_pair((i + 0.5) / 3, (j + 0.37) / 3);
+    for (int j = 0; j < 12; ++j) sites.append(sites.empty() ? "" : ",").append(fmt_pair((i + 0.5) / 3, (j + 0.37) / 3));
   const std::string domain =
       R"("domain": {"outer": [[0,0],[4,0],[4,4],[0,4]], "holes": [[[1,1],[2,1],[2,2],[1,2]], [[2.5,2.5],[3.5,2.5],[3.5,3.5],[2.5,3.5]]]})";
   const auto uniform = write("holes.json", R"({"geometry": "plane", "sites": [)" + sites + "], " + domain + "}");
