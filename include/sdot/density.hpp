@@ -48,11 +48,10 @@ struct FunctionDensity {
   ScalarField<Point> rho;
   int quadrature_order = 8;
 
-  /// The cost comes from the same quadrature nodes, so it is always computed.
   template <class G>
   [[nodiscard]] CellIntegrals<Point> integrate_cell(const G& geometry, const Cell<Point>& cell, const Point& site,
-                                                    bool /*with_cost*/ = true) const {
-    return geometry.integrate(cell, site, rho, quadrature_order);
+                                                    bool with_cost = true) const {
+    return geometry.integrate(cell, site, rho, quadrature_order, with_cost);
   }
   template <class G>
   [[nodiscard]] double facet_weight(const G& geometry, const Point& a, const Point& b, const Point& site_i,

@@ -28,7 +28,7 @@ namespace sdot {
 ///   convex polygons whose edges name the neighbour site (or a domain boundary label);
 /// - `integrate(cell, site, with_cost)`: exact mass, first moment and (when `with_cost`) the
 ///   transport cost of the cell for ρ ≡ 1;
-/// - `integrate(cell, site, rho, order)`: the same for a function ρ, by quadrature;
+/// - `integrate(cell, site, rho, order, with_cost)`: the same for a function ρ, by quadrature;
 /// - `facet_weight(a, b, y_i, w_i, y_j, w_j)`: ∫_{[a,b]} 1 / |∇_x(c_i − c_j)| ds, exact;
 /// - `facet_weight(a, b, y_i, w_i, y_j, w_j, rho, order)`: ∫ ρ / |∇_x(c_i − c_j)| ds;
 /// - `centroid(integrals)`: the (intrinsic) centroid of a cell from its integrals.
@@ -43,7 +43,7 @@ concept Geometry = requires(const G& geometry, const typename G::Point& point, s
   { geometry.default_weights(sites) } -> std::convertible_to<Eigen::VectorXd>;
   { geometry.build_diagram(sites, weights) } -> std::same_as<Diagram<typename G::Point>>;
   { geometry.integrate(cell, point, true) } -> std::same_as<CellIntegrals<typename G::Point>>;
-  { geometry.integrate(cell, point, rho, order) } -> std::same_as<CellIntegrals<typename G::Point>>;
+  { geometry.integrate(cell, point, rho, order, true) } -> std::same_as<CellIntegrals<typename G::Point>>;
   { geometry.facet_weight(point, point, point, weight, point, weight) } -> std::convertible_to<double>;
   { geometry.facet_weight(point, point, point, weight, point, weight, rho, order) } -> std::convertible_to<double>;
   { geometry.centroid(integrals) } -> std::convertible_to<typename G::Point>;

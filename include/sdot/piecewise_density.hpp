@@ -105,6 +105,7 @@ class PiecewiseDensity {
   struct Node {
     Eigen::Vector3d center;  // unit vector
     double radius = 0;       // angle: every piece of the subtree lies in this cap
+    double cos_radius = 1, sin_radius = 0;
     std::uint32_t begin = 0, end = 0;
     std::int32_t left = -1, right = -1;
   };
@@ -143,10 +144,22 @@ class PiecewiseDensity {
   std::vector<double> constants_;
   std::vector<Eigen::Vector3d> numerators_, denominators_;  // linear: ρ = a·X / b·X
   std::vector<Eigen::Vector3d> cap_centers_;
-  std::vector<double> cap_radii_;
+  std::vector<double> cap_radii_, cap_cos_, cap_sin_;
   std::vector<std::uint32_t> tree_order_;
   std::vector<Node> nodes_;
 };
+
+/// A triangle mesh: vertices and triangles as vertex-index triples.
+template <class Point>
+struct TriangleMesh {
+  std::vector<Point> vertices;
+  std::vector<std::array<int, 3>> triangles;
+};
+
+/// Splits every triangle into 4 by its geodesic edge midpoints, `levels` times (shared edges get
+/// one midpoint): builds meshes over a domain from a few coarse triangles.
+template <ProjectiveGeometry G>
+TriangleMesh<typename G::Point> subdivide(const G& geometry, const TriangleMesh<typename G::Point>& mesh, int levels);
 
 /// ρ piecewise linear on a triangle mesh, from its values at the vertices (linear in the
 /// geometry's chart, see ProjectiveGeometry). Throws InputError naming `<name>.vertices[i]`,

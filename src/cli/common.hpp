@@ -195,6 +195,23 @@ json bench_json(const std::string& geometry, std::size_t n, const Result<Point>&
           {"peak_rss_mb", peak_rss_mb()}};
 }
 
+/// The benchmark: the uniform density, or (request.density_triangles > 0) the mesh density that
+/// `make_density(triangles)` builds; the line then also gives the mesh's size and build time.
+template <class G, class MakeDensity>
+json run_bench(const G& geometry, std::span<const typename G::Point> sites, const Eigen::VectorXd& masses,
+               const BenchRequest& request, MakeDensity&& make_density) {
+  const Options options = bench_options(request);
+  if (request.density_triangles == 0)
+    return bench_json(std::string(G::name()), request.n, solve(geometry, UniformDensity{}, sites, masses, options));
+  const auto start = std::chrono::steady_clock::now();
+  const PiecewiseDensity<G> density = make_density(request.density_triangles);
+  const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  json line = bench_json(std::string(G::name()), request.n, solve(geometry, density, sites, masses, options));
+  line["density_triangles"] = density.piece_count();
+  line["density_build_s"] = build_s;
+  return line;
+}
+
 /// A simple SVG canvas with a world-to-pixel map (y up in the world, down in the picture).
 class Svg {
  public:

@@ -16,7 +16,8 @@ using sdot::cli::json;
 constexpr const char* usage_text =
     "usage:\n"
     "  sdot solve PROBLEM.json [-o RESULT.json] [--svg DIAGRAM.svg] [--quiet]\n"
-    "  sdot bench --geometry NAME --n N [--seed S] [--tolerance T] [--linear-solver ldlt|cg|cholmod] [--quiet]\n"
+    "  sdot bench --geometry NAME --n N [--seed S] [--tolerance T] [--linear-solver ldlt|cg|cholmod]\n"
+    "             [--density-triangles T] [--quiet]\n"
     "  sdot demo [--out DIR] [--quiet]\n"
     "  sdot --help | --version\n"
     "exit codes: 0 success, 1 internal error, 2 bad input or usage, 3 the solver did not converge\n";
@@ -111,6 +112,10 @@ int run_bench(const sdot::cli::Registry& registry, int argc, char** argv) {
     else if (arg == "--tolerance") {
       request.tolerance = number(next_argument(i, argc, argv));
       if (!(request.tolerance > 0)) throw UsageError("--tolerance must be positive");
+    } else if (arg == "--density-triangles") {
+      const double t = number(next_argument(i, argc, argv));
+      if (t < 1 || t != std::floor(t)) throw UsageError("--density-triangles must be a positive integer");
+      request.density_triangles = static_cast<std::size_t>(t);
     } else if (arg == "--linear-solver")
       request.linear_solver = next_argument(i, argc, argv);
     else if (arg == "--quiet" || arg == "-q")

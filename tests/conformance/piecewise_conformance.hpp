@@ -26,40 +26,19 @@ namespace sdot::testing {
 template <class G>
 struct PiecewiseTraits;
 
-/// A triangle soup (three own vertices per triangle) refining `coarse` `levels` times by
-/// geodesic midpoints; shared edges get the same midpoints, so vertex values from a function
-/// give a continuous piecewise-linear density.
+/// A mesh over the traits' coarse triangles, refined `levels` times.
 template <class G>
-struct TestMesh {
-  std::vector<typename G::Point> vertices;
-  std::vector<std::array<int, 3>> triangles;
-};
+using TestMesh = TriangleMesh<typename G::Point>;
 
 template <class G>
 TestMesh<G> refine(const G& geometry, const std::vector<std::array<typename G::Point, 3>>& coarse, int levels) {
-  using Point = typename G::Point;
-  std::vector<std::array<Point, 3>> triangles = coarse;
-  auto midpoint = [&](const Point& a, const Point& b) {
-    return geometry.from_projective(geometry.to_projective(a).normalized() + geometry.to_projective(b).normalized());
-  };
-  for (int level = 0; level < levels; ++level) {
-    std::vector<std::array<Point, 3>> finer;
-    for (const auto& t : triangles) {
-      const Point ab = midpoint(t[0], t[1]), bc = midpoint(t[1], t[2]), ca = midpoint(t[2], t[0]);
-      finer.push_back({t[0], ab, ca});
-      finer.push_back({ab, t[1], bc});
-      finer.push_back({ca, bc, t[2]});
-      finer.push_back({ab, bc, ca});
-    }
-    triangles = std::move(finer);
-  }
   TestMesh<G> mesh;
-  for (const auto& t : triangles) {
+  for (const auto& t : coarse) {
     const int first = static_cast<int>(mesh.vertices.size());
     mesh.vertices.insert(mesh.vertices.end(), t.begin(), t.end());
     mesh.triangles.push_back({first, first + 1, first + 2});
   }
-  return mesh;
+  return subdivide(geometry, mesh, levels);
 }
 
 template <class G>

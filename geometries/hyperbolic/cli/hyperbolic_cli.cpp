@@ -190,10 +190,26 @@ Hyperbolic bench_domain() {
 json bench_hyperbolic(const BenchRequest& request) {
   const Hyperbolic geometry = bench_domain();
   const auto sites = geometry.uniform_samples(request.n, request.seed);
-  const Options options = bench_options(request);
-  const auto result =
-      solve(geometry, UniformDensity{}, std::span<const Point>(sites), equal_masses(request.n), options);
-  return bench_json("hyperbolic", request.n, result);
+  return run_bench(
+      geometry, std::span<const Point>(sites), equal_masses(request.n), request, [&](std::size_t triangles) {
+        // The domain's fan from its centre, subdivided until it has ≥ `triangles`;
+        // ρ = 1 + ½ sin(3 k₁) cos(2 k₂) in Klein coordinates at the vertices.
+        TriangleMesh<Point> mesh;
+        mesh.vertices = geometry.domain();
+        mesh.vertices.push_back(geometry.center());
+        const int sides = static_cast<int>(geometry.domain().size());
+        for (int k = 0; k < sides; ++k) mesh.triangles.push_back({sides, k, (k + 1) % sides});
+        int levels = 0;
+        for (std::size_t count = mesh.triangles.size(); count < triangles; count *= 4) ++levels;
+        mesh = subdivide(geometry, mesh, levels);
+        std::vector<double> values;
+        for (const auto& v : mesh.vertices) {
+          const Eigen::Vector2d k = Hyperbolic::to_klein(v);
+          values.push_back(1 + 0.5 * std::sin(3 * k.x()) * std::cos(2 * k.y()));
+        }
+        return mesh_density(geometry, std::span<const Point>(mesh.vertices),
+                            std::span<const std::array<int, 3>>(mesh.triangles), std::span<const double>(values));
+      });
 }
 
 json demo_hyperbolic() {

@@ -337,7 +337,7 @@ CellIntegrals<Hyperbolic::Point> Hyperbolic::integrate(const Cell<Point>& cell, 
 }
 
 CellIntegrals<Hyperbolic::Point> Hyperbolic::integrate(const Cell<Point>& cell, const Point& site,
-                                                       const ScalarField<Point>& rho, int order) const {
+                                                       const ScalarField<Point>& rho, int order, bool with_cost) const {
   CellIntegrals<Point> result;
   const Point& a = cell.vertices[0];
   for (std::size_t k = 1; k + 1 < cell.size(); ++k)
@@ -345,7 +345,7 @@ CellIntegrals<Hyperbolic::Point> Hyperbolic::integrate(const Cell<Point>& cell, 
       const double mass = da * rho(x);
       result.mass += mass;
       result.first_moment += mass * x;
-      result.cost += mass * cost(x, site);
+      if (with_cost) result.cost += mass * cost(x, site);
     });
   return result;
 }

@@ -1,5 +1,6 @@
 // The sdot command's adapter for the plane: problem fields, SVG picture, benchmark, demo.
 #include <cmath>
+#include <numbers>
 #include <random>
 
 #include "common.hpp"
@@ -129,10 +130,27 @@ json bench_plane(const BenchRequest& request) {
   std::uniform_real_distribution<double> uniform(0, 1);
   std::vector<Point> sites(request.n);
   for (auto& s : sites) s = Point(uniform(random), uniform(random));
-  const Options options = bench_options(request);
   const Plane plane;
-  const auto result = solve(plane, UniformDensity{}, std::span<const Point>(sites), equal_masses(request.n), options);
-  return bench_json("plane", request.n, result);
+  return run_bench(plane, std::span<const Point>(sites), equal_masses(request.n), request, [&](std::size_t triangles) {
+    // A k × k grid of squares, two triangles each; ρ = 1 + ½ sin(2πx) sin(2πy).
+    const int k = std::max(1, static_cast<int>(std::lround(std::sqrt(static_cast<double>(triangles) / 2))));
+    TriangleMesh<Point> mesh;
+    std::vector<double> values;
+    for (int j = 0; j <= k; ++j)
+      for (int i = 0; i <= k; ++i) {
+        const Point p(static_cast<double>(i) / k, static_cast<double>(j) / k);
+        mesh.vertices.push_back(p);
+        values.push_back(1 + 0.5 * std::sin(2 * std::numbers::pi * p.x()) * std::sin(2 * std::numbers::pi * p.y()));
+      }
+    for (int j = 0; j < k; ++j)
+      for (int i = 0; i < k; ++i) {
+        const int a = j * (k + 1) + i, b = a + 1, c = a + k + 1, d = c + 1;
+        mesh.triangles.push_back({a, b, d});
+        mesh.triangles.push_back({a, d, c});
+      }
+    return mesh_density(plane, std::span<const Point>(mesh.vertices),
+                        std::span<const std::array<int, 3>>(mesh.triangles), std::span<const double>(values));
+  });
 }
 
 json demo_plane() {

@@ -109,7 +109,7 @@ CellIntegrals<Plane::Point> Plane::integrate(const Cell<Point>& cell, const Poin
 }
 
 CellIntegrals<Plane::Point> Plane::integrate(const Cell<Point>& cell, const Point& site, const ScalarField<Point>& rho,
-                                             int order) const {
+                                             int order, bool with_cost) const {
   const auto& rule = triangle_rule(order);
   CellIntegrals<Point> result;
   const Vec2& a = cell.vertices[0];
@@ -121,7 +121,7 @@ CellIntegrals<Plane::Point> Plane::integrate(const Cell<Point>& cell, const Poin
       const double mass = node.weight * jacobian * rho(x);
       result.mass += mass;
       result.first_moment += mass * x;
-      result.cost += mass * cost(x, site);
+      if (with_cost) result.cost += mass * cost(x, site);
     }
   }
   return result;

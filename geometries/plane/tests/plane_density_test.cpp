@@ -178,7 +178,9 @@ TEST(PlaneDensity, RestrictedImageHessianMatchesFiniteDifferences) {
     const auto restricted =
         image_density(plane, image, Eigen::AlignedBox2d(Eigen::Vector2d(0, 0), Eigen::Vector2d(4, 4)), interpolation)
             .restricted_to(region.convex_pieces());
-    if (interpolation == ImageInterpolation::constant) EXPECT_EQ(restricted.piece_count(), 32u * 32u - 8u * 8u);
+    if (interpolation == ImageInterpolation::constant) {
+      EXPECT_EQ(restricted.piece_count(), 32u * 32u - 8u * 8u);
+    }
     const double error =
         hessian_fd_error(plane, restricted, span, solved_weights(plane, restricted, span, equal_masses(40, 1.0)), 1e-7);
     std::printf("  restricted %s image: Hessian vs finite differences %.2e\n",

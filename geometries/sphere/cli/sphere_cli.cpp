@@ -197,11 +197,21 @@ std::vector<Point> uniform_sites(std::size_t n, unsigned seed) {
 
 json bench_sphere(const BenchRequest& request) {
   const auto sites = uniform_sites(request.n, request.seed);
-  const Options options = bench_options(request);
   const Sphere sphere;
-  const auto result =
-      solve(sphere, UniformDensity{}, std::span<const Point>(sites), equal_masses(request.n, 4 * pi), options);
-  return bench_json("sphere", request.n, result);
+  return run_bench(
+      sphere, std::span<const Point>(sites), equal_masses(request.n, 4 * pi), request, [&](std::size_t triangles) {
+        // A 2H × H longitude–latitude image, linear on its 4H² triangles:
+        // ρ = 1 + ½ cos(latitude) sin(3 longitude) at the pixel centres.
+        const int height = std::max(2, static_cast<int>(std::lround(std::sqrt(static_cast<double>(triangles) / 4))));
+        GrayImage image{2 * height, height, {}};
+        for (int r = 0; r < height; ++r)
+          for (int c = 0; c < 2 * height; ++c) {
+            const double longitude = -pi + (c + 0.5) * pi / height;
+            const double latitude = pi / 2 - (r + 0.5) * pi / height;
+            image.values.push_back(1 + 0.5 * std::cos(latitude) * std::sin(3 * longitude));
+          }
+        return equirectangular_density(sphere, image, ImageInterpolation::linear);
+      });
 }
 
 json demo_sphere() {

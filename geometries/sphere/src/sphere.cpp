@@ -827,7 +827,7 @@ CellIntegrals<Sphere::Point> Sphere::integrate(const Cell<Point>& cell, const Po
 }
 
 CellIntegrals<Sphere::Point> Sphere::integrate(const Cell<Point>& cell, const Point& site,
-                                               const ScalarField<Point>& rho, int order) const {
+                                               const ScalarField<Point>& rho, int order, bool with_cost) const {
   CellIntegrals<Point> result;
   if (cell.size() < 3) return result;
   const Vec3 p = site.normalized();
@@ -837,7 +837,7 @@ CellIntegrals<Sphere::Point> Sphere::integrate(const Cell<Point>& cell, const Po
         const double m = w * rho(x);
         result.mass += m;
         result.first_moment += m * x;
-        result.cost += m * log_cost(x, p);
+        if (with_cost) result.cost += m * log_cost(x, p);
       });
   return result;
 }

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <numbers>
 #include <numeric>
+#include <unordered_map>
 
 #include "sdot/error.hpp"
 
@@ -126,6 +127,8 @@ void sdot::PiecewiseDensity<G>::add_unit_piece(const std::vector<Eigen::Vector3d
   denominators_.push_back(denominator);
   cap_centers_.push_back(center);
   cap_radii_.push_back(radius);
+  cap_cos_.push_back(std::cos(radius));
+  cap_sin_.push_back(std::sin(radius));
   for (std::size_t k = 0; k < corners.size(); ++k) {
     corners_.push_back(corners[k]);
     normals_.push_back(corners[k].cross(corners[(k + 1) % corners.size()]).normalized());
@@ -177,6 +180,8 @@ std::int32_t sdot::PiecewiseDensity<G>::build_tree(std::uint32_t begin, std::uin
     node.left = build_tree(begin, middle);
     node.right = build_tree(middle, end);
   }
+  node.cos_radius = std::cos(node.radius);
+  node.sin_radius = std::sin(node.radius);
   nodes_[static_cast<std::size_t>(index)] = node;
   return index;
 }
@@ -185,17 +190,23 @@ template <sdot::ProjectiveGeometry G>
 template <class Visit>
 void sdot::PiecewiseDensity<G>::query(const Eigen::Vector3d& center, double radius, Visit&& visit) const {
   if (nodes_.empty()) return;
-  constexpr double slack = 1e-9;
+  // Caps (c₁, r₁) and (c₂, r₂) meet when ∠(c₁, c₂) ≤ r₁ + r₂, i.e. c₁·c₂ ≥ cos r₁ cos r₂ − sin r₁ sin r₂
+  // (for r₁ + r₂ < π): no inverse cosine in the loop.
+  constexpr double slack = 1e-12;
+  const double cos_radius = std::cos(radius), sin_radius = std::sin(radius);
+  auto meets = [&](const Eigen::Vector3d& c, double r, double cos_r, double sin_r) {
+    return radius + r >= std::numbers::pi || center.dot(c) >= cos_radius * cos_r - sin_radius * sin_r - slack;
+  };
   std::int32_t stack[128];
   int top = 0;
   stack[top++] = 0;
   while (top > 0) {
     const Node& node = nodes_[static_cast<std::size_t>(stack[--top])];
-    if (detail::angle_between(center, node.center) > radius + node.radius + slack) continue;
+    if (!meets(node.center, node.radius, node.cos_radius, node.sin_radius)) continue;
     if (node.left < 0) {
       for (std::uint32_t k = node.begin; k < node.end; ++k) {
         const auto p = tree_order_[k];
-        if (detail::angle_between(center, cap_centers_[p]) <= radius + cap_radii_[p] + slack) visit(std::size_t{p});
+        if (meets(cap_centers_[p], cap_radii_[p], cap_cos_[p], cap_sin_[p])) visit(std::size_t{p});
       }
     } else {
       stack[top++] = node.left;
@@ -236,11 +247,11 @@ sdot::CellIntegrals<typename G::Point> sdot::PiecewiseDensity<G>::integrate_piec
     }
     case PieceKind::linear: {
       const ScalarField<Point> rho = [this, piece](const Point& x) { return local_value(piece, x); };
-      return geometry.integrate(polygon, site, rho, piece_order(piece));
+      return geometry.integrate(polygon, site, rho, piece_order(piece), with_cost);
     }
     case PieceKind::field:
     default:
-      return geometry.integrate(polygon, site, field_, piece_order(piece));
+      return geometry.integrate(polygon, site, field_, piece_order(piece), with_cost);
   }
 }
 
@@ -462,4 +473,35 @@ sdot::PiecewiseDensity<G> sdot::mesh_density_per_triangle(const G& geometry,
     }
   }
   return PiecewiseDensity<G>(geometry, pieces, {}, 5, name + ".triangles");
+}
+
+template <sdot::ProjectiveGeometry G>
+sdot::TriangleMesh<typename G::Point> sdot::subdivide(const G& geometry, const TriangleMesh<typename G::Point>& mesh,
+                                                      int levels) {
+  TriangleMesh<typename G::Point> result = mesh;
+  for (int level = 0; level < levels; ++level) {
+    std::unordered_map<std::uint64_t, int> midpoints;
+    auto midpoint = [&](int a, int b) {
+      const auto key = (static_cast<std::uint64_t>(std::min(a, b)) << 32) | static_cast<std::uint32_t>(std::max(a, b));
+      const auto [it, inserted] = midpoints.try_emplace(key, static_cast<int>(result.vertices.size()));
+      if (inserted) {
+        const auto& pa = result.vertices[static_cast<std::size_t>(a)];
+        const auto& pb = result.vertices[static_cast<std::size_t>(b)];
+        result.vertices.push_back(geometry.from_projective(geometry.to_projective(pa).normalized() +
+                                                           geometry.to_projective(pb).normalized()));
+      }
+      return it->second;
+    };
+    std::vector<std::array<int, 3>> finer;
+    finer.reserve(4 * result.triangles.size());
+    for (const auto& [a, b, c] : result.triangles) {
+      const int ab = midpoint(a, b), bc = midpoint(b, c), ca = midpoint(c, a);
+      finer.push_back({a, ab, ca});
+      finer.push_back({ab, b, bc});
+      finer.push_back({ca, bc, c});
+      finer.push_back({ab, bc, ca});
+    }
+    result.triangles = std::move(finer);
+  }
+  return result;
 }

@@ -108,7 +108,7 @@ class Hyperbolic {
   /// ρ a function: order² points per centrally projected fan triangle,
   /// dA = |det(a, b, c)| / (−⟨X, X⟩_M)^{3/2} ds dt.
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
-                                               const ScalarField<Point>& rho, int order) const;
+                                               const ScalarField<Point>& rho, int order, bool with_cost = true) const;
   /// ∫_{[a,b]} ds / |∇(c_i − c_j)| = tanh(L/2) (−⟨q_i, a + b⟩_M) / ‖q_i − q_j‖_M, q = e^{−h} y.
   [[nodiscard]] double facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i,
                                     const Point& site_j, double weight_j) const;

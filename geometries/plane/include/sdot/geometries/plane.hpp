@@ -36,7 +36,7 @@ class Plane {
   /// Exact area, first moment and ∫|x − y|²/2 of a polygon.
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site, bool with_cost = true) const;
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
-                                               const ScalarField<Point>& rho, int order) const;
+                                               const ScalarField<Point>& rho, int order, bool with_cost = true) const;
   /// |ab| / |y_i − y_j|.
   [[nodiscard]] double facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i,
                                     const Point& site_j, double weight_j) const;

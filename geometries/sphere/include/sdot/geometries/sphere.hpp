@@ -79,7 +79,7 @@ class Sphere {
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site, bool with_cost = true) const;
   /// By quadrature over centrally projected fan triangles (`triangle_rule(order)`).
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
-                                               const ScalarField<Point>& rho, int order) const;
+                                               const ScalarField<Point>& rho, int order, bool with_cost = true) const;
   /// ∫_{arc ab} 1/|∇(c_i − c_j)| ds = ⟨a_i, (b − a) × n̂⟩ / |a_i − a_j| with a = e^{h}p, exact.
   [[nodiscard]] double facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i,
                                     const Point& site_j, double weight_j) const;
