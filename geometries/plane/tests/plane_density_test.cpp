@@ -145,6 +145,11 @@ TEST(PlaneDensity, DomainWithHolesAndSitesInsideTheHoles) {
   ASSERT_TRUE(result.summary.converged()) << result.summary.message;
   EXPECT_LE(result.summary.max_relative_error, 1e-9);
   EXPECT_NEAR(result.masses.sum(), 14, 1e-10);
+  const auto few = std::span<const Plane::Point>(sites).first(40);
+  const double region_error =
+      hessian_fd_error(plane, density, few, solved_weights(plane, density, few, equal_masses(40, 1.0)));
+  std::printf("  uniform density on a domain with holes: Hessian vs finite differences %.2e\n", region_error);
+  EXPECT_LT(region_error, 1e-6);
   // A density restricted to the region: ∫ over the region only.
   const GrayImage image = test_image(8, 8, 21);
   const auto on_square = image_density(plane, image, Eigen::AlignedBox2d(Eigen::Vector2d(0, 0), Eigen::Vector2d(4, 4)),
