@@ -72,7 +72,7 @@ class PiecewiseDensity {
   /// and field pieces, raised for large pieces (see piece_order). The pieces' coordinates are interpreted in
   /// `geometry`'s chart.
   PiecewiseDensity(const G& geometry, const std::vector<DensityPiece<Point>>& pieces, ScalarField<Point> field = {},
-                   int quadrature_order = 5, std::string name = "density.pieces");
+                   int quadrature_order = 3, std::string name = "density.pieces");
 
   [[nodiscard]] std::size_t piece_count() const { return kinds_.size(); }
   /// ∫ρ over all pieces.
@@ -122,11 +122,15 @@ class PiecewiseDensity {
   void add_unit_piece(const std::vector<Eigen::Vector3d>& polygon, PieceKind kind, double constant,
                       const Eigen::Vector3d& numerator, const Eigen::Vector3d& denominator);
   void build_index();
-  /// The quadrature order for a piece: `quadrature_order` for small pieces, more for large ones
-  /// (the chart's Jacobian varies across them): +1 per 1/12 radian of the piece's radius.
-  /// Measured: a Klein triangle of radius ~0.5 needs order 12 for 1e-12.
+  /// The quadrature order for a piece. In an affine chart (the plane: `G::affine_chart`) linear
+  /// and bilinear ρ make polynomial integrands, and `quadrature_order` (default 3: exact up to
+  /// degree 4) is exact. Elsewhere the chart's Jacobian varies across a piece, so large pieces
+  /// need more: `quadrature_order` + ⌈18 × the piece's radius in radians⌉ (measured: a Klein
+  /// triangle of radius 0.5 needs order 12 for 1e-15; pieces of a 10⁶-triangle sphere mesh,
+  /// radius ~2e-3, get order 4, exact to round-off).
   [[nodiscard]] int piece_order(std::size_t piece) const {
-    return std::min(64, quadrature_order_ + static_cast<int>(std::ceil(12 * cap_radii_[piece])));
+    if constexpr (requires { requires G::affine_chart; }) return quadrature_order_;
+    return std::min(64, quadrature_order_ + static_cast<int>(std::ceil(18 * cap_radii_[piece])));
   }
   /// The local ρ of a piece at a point.
   [[nodiscard]] double local_value(std::size_t piece, const Point& x) const;

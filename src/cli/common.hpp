@@ -110,7 +110,7 @@ std::optional<PiecewiseDensity<G>> read_density(const G& geometry, const json& p
                                      std::span<const std::array<int, 3>>(triangles), value_span, prefix);
   const int order = density.contains("quadrature_order")
                         ? static_cast<int>(read_number(density["quadrature_order"], "density.quadrature_order"))
-                        : 5;
+                        : 3;
   if (order < 1 || order > 64) throw InputError("density.quadrature_order", "must be an integer in 1..64");
   return mesh_density(geometry, std::span<const typename G::Point>(vertices),
                       std::span<const std::array<int, 3>>(triangles), value_span, order, prefix);

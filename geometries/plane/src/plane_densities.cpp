@@ -46,7 +46,7 @@ PiecewiseDensity<Plane> image_density(const Plane& plane, const GrayImage& image
         const double x0 = low.x() + column * dx, y1 = high.y() - row * dy;
         pieces.push_back({rectangle_piece(x0, y1 - dy, x0 + dx, y1), PieceKind::constant, {value, 0, 0}});
       }
-    return PiecewiseDensity<Plane>(plane, pieces, {}, 5, field + ".pixels");
+    return PiecewiseDensity<Plane>(plane, pieces, {}, 3, field + ".pixels");
   }
   // Bilinear: pieces between consecutive breaks {edge, pixel centres…, edge} in x and y.
   std::vector<double> xs{low.x()}, ys{high.y()};
@@ -67,13 +67,13 @@ PiecewiseDensity<Plane> image_density(const Plane& plane, const GrayImage& image
   ScalarField<Point> rho = [shared, low, high, dx, dy, scale](const Point& x) {
     return scale * bilinear(*shared, (x.x() - low.x()) / dx - 0.5, (high.y() - x.y()) / dy - 0.5);
   };
-  return PiecewiseDensity<Plane>(plane, pieces, std::move(rho), 5, field + ".pixels");
+  return PiecewiseDensity<Plane>(plane, pieces, std::move(rho), 3, field + ".pixels");
 }
 
 PiecewiseDensity<Plane> region_density(const Plane& plane, const PlaneRegion& region) {
   std::vector<DensityPiece<Plane::Point>> pieces;
   for (const auto& polygon : region.convex_pieces()) pieces.push_back({polygon, PieceKind::constant, {1, 0, 0}});
-  return PiecewiseDensity<Plane>(plane, pieces, {}, 5, "domain.pieces");
+  return PiecewiseDensity<Plane>(plane, pieces, {}, 3, "domain.pieces");
 }
 
 }  // namespace sdot

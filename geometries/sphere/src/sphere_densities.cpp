@@ -39,7 +39,7 @@ PiecewiseDensity<Sphere> equirectangular_density(const Sphere& sphere, const Gra
         const double lon0 = -pi + column * dlon, lat0 = pi / 2 - row * dlat;
         pieces.push_back({quad(lon0, lat0, lon0 + dlon, lat0 - dlat), PieceKind::constant, {value, 0, 0}});
       }
-    return PiecewiseDensity<Sphere>(sphere, pieces, {}, 5, field + ".pixels");
+    return PiecewiseDensity<Sphere>(sphere, pieces, {}, 3, field + ".pixels");
   }
   if (interpolation != ImageInterpolation::linear)
     throw InputError(field + ".interpolation", "the sphere accepts \"constant\" or \"linear\" image interpolation");
@@ -74,7 +74,7 @@ PiecewiseDensity<Sphere> equirectangular_density(const Sphere& sphere, const Gra
     }
   }
   return mesh_density(sphere, std::span<const Point>(vertices), std::span<const std::array<int, 3>>(triangles),
-                      std::span<const double>(values), 5, field + ".pixels");
+                      std::span<const double>(values), 3, field + ".pixels");
 }
 
 }  // namespace sdot

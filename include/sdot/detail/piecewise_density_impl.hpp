@@ -472,7 +472,7 @@ sdot::PiecewiseDensity<G> sdot::mesh_density_per_triangle(const G& geometry,
       piece.polygon.push_back(vertices[static_cast<std::size_t>(v)]);
     }
   }
-  return PiecewiseDensity<G>(geometry, pieces, {}, 5, name + ".triangles");
+  return PiecewiseDensity<G>(geometry, pieces, {}, 3, name + ".triangles");
 }
 
 template <sdot::ProjectiveGeometry G>

@@ -22,6 +22,9 @@ class Plane {
   explicit Plane(ConvexPolygon domain);
 
   static constexpr std::string_view name() { return "plane"; }
+  /// The projective chart is affine (to_projective is linear in x): polynomial densities make
+  /// polynomial integrands, which fixed-order quadrature integrates exactly.
+  static constexpr bool affine_chart = true;
   [[nodiscard]] const ConvexPolygon& domain() const { return domain_; }
 
   [[nodiscard]] static double cost(const Point& x, const Point& y) { return (x - y).squaredNorm() / 2; }
