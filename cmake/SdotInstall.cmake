@@ -6,6 +6,13 @@ install(TARGETS sdot EXPORT sdotTargets
   RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(EXPORT sdotTargets NAMESPACE sdot:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/sdot)
+# A static libsdot carries its private dependencies (Qhull, libpng) into consumers' link lines.
+get_target_property(_sdot_type sdot TYPE)
+if(_sdot_type STREQUAL "STATIC_LIBRARY")
+  set(SDOT_STATIC_LIBRARY ON)
+else()
+  set(SDOT_STATIC_LIBRARY OFF)
+endif()
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/sdotConfig.cmake.in
   ${PROJECT_BINARY_DIR}/sdotConfig.cmake INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/sdot)
 write_basic_package_version_file(${PROJECT_BINARY_DIR}/sdotConfigVersion.cmake COMPATIBILITY SameMinorVersion)

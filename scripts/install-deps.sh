@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs the Debian packages sdot needs, when missing (sudo only when not root).
 set -euo pipefail
-packages=(cmake g++ make libeigen3-dev libboost-dev libqhull-dev libfmt-dev libgtest-dev libsuitesparse-dev
+packages=(cmake g++ make libeigen3-dev libboost-dev libqhull-dev libpng-dev libfmt-dev libgtest-dev libsuitesparse-dev
           nlohmann-json3-dev python3-numpy)
 missing=()
 for p in "${packages[@]}"; do
