@@ -2,6 +2,7 @@
 # Installs the Debian packages sdot needs, when missing (sudo only when not root).
 set -euo pipefail
 packages=(cmake g++ make libeigen3-dev libboost-dev libqhull-dev libpng-dev libfmt-dev libgtest-dev libsuitesparse-dev
+          libopenblas0-pthread
           nlohmann-json3-dev python3-numpy)
 missing=()
 for p in "${packages[@]}"; do

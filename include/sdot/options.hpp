@@ -27,7 +27,7 @@ struct Options {
   int max_iterations = 100;
   /// Step halvings per line search at most; running out is Status::line_search_failure.
   int max_step_halvings = 40;
-  LinearSolverKind linear_solver = LinearSolverKind::ldlt;
+  LinearSolverKind linear_solver = LinearSolverKind::automatic;
   /// Relative residual of the conjugate-gradient solve (only for conjugate_gradient).
   double cg_tolerance = 1e-12;
   /// When the target masses do not sum to the source mass: rescale them to it (true, the

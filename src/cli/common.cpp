@@ -54,10 +54,11 @@ void check_known_fields(const json& object, const std::string& where, const std:
 
 namespace {
 LinearSolverKind read_linear_solver(const json& solver) {
+  if (solver == "auto") return LinearSolverKind::automatic;
   if (solver == "ldlt") return LinearSolverKind::ldlt;
   if (solver == "cg") return LinearSolverKind::conjugate_gradient;
   if (solver == "cholmod") return LinearSolverKind::cholmod;
-  throw InputError("linear_solver", "must be \"ldlt\", \"cg\" or \"cholmod\"");
+  throw InputError("linear_solver", "must be \"auto\", \"ldlt\", \"cg\" or \"cholmod\"");
 }
 
 void print_progress(const IterationRecord& r) {

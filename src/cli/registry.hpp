@@ -27,7 +27,7 @@ struct BenchRequest {
   unsigned seed = 1;
   double tolerance = 1e-6;
   bool quiet = false;
-  std::string linear_solver = "ldlt";  // "ldlt", "cg" or "cholmod"
+  std::string linear_solver = "auto";  // "auto", "ldlt", "cg" or "cholmod"
   /// > 0: a smooth piecewise-linear mesh density with about this many triangles instead of the
   /// uniform density (measures the density machinery).
   std::size_t density_triangles = 0;

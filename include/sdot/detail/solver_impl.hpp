@@ -62,6 +62,9 @@ class NewtonLinearSolver {
  public:
   explicit NewtonLinearSolver(const Options& options) {
     if constexpr (requires(S s) { s.setTolerance(1.0); }) solver_.setTolerance(options.cg_tolerance);
+#ifdef SDOT_HAVE_CHOLMOD
+    if constexpr (std::is_same_v<S, CholmodSolver>) use_single_threaded_blas();
+#endif
   }
   /// Solves H d = rhs; false when the factorisation or the iteration failed.
   bool solve(const SparseMatrix& hessian, const Eigen::VectorXd& rhs, Eigen::VectorXd& direction) {
@@ -80,7 +83,9 @@ class NewtonLinearSolver {
     return solver_.info() == Eigen::Success && direction.allFinite();
   }
   /// How many symbolic analyses were done (pattern reuse is visible in tests).
-  [[nodiscard]] int analyses() const { return analyses_; }
+  [[nodiscard]] int analyses() const {
+    return analyses_;
+  }
 
  private:
   bool same_pattern(const SparseMatrix& m) {
@@ -403,8 +408,11 @@ sdot::Result<typename G::Point> sdot::solve(const G& geometry, const D& density,
       return solve_with<CholmodSolver>(geometry, density, sites, target_masses, options, std::move(initial_weights));
 #endif
     case LinearSolverKind::ldlt:
-    default:
       return solve_with<DefaultLinearSolver>(geometry, density, sites, target_masses, options,
                                              std::move(initial_weights));
+    case LinearSolverKind::automatic:
+    default:
+      return solve_with<AutomaticLinearSolver>(geometry, density, sites, target_masses, options,
+                                               std::move(initial_weights));
   }
 }
