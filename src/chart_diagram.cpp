@@ -2,6 +2,7 @@
 #include "sdot/chart_diagram.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -420,7 +421,8 @@ class PowerTree {
 }  // namespace
 
 std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weight,
-                                           const ConvexPolygon& domain, std::span<const Vec2> anchors) {
+                                           const ConvexPolygon& domain, std::span<const Vec2> anchors,
+                                           bool stop_at_empty_cell) {
   // Each cell starts as the domain clipped by the sites of the nearest centres; then, while some
   // site j is strictly below the envelope at a vertex v of the cell (pow_j(v) < pow_i(v)), the
   // cell is clipped by it. A kd-tree holding the largest w per node finds such j exactly
@@ -436,6 +438,7 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
   const auto& boundary = domain.vertices();
   const std::size_t seed_count = std::min<std::size_t>(n, 13);
 
+  std::atomic<bool> found_empty{false};
 #pragma omp parallel
   {
     std::vector<std::pair<double, int>> heap;
@@ -443,6 +446,7 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
     // Cells in tree order: neighbouring cells share tree nodes and stay in cache.
 #pragma omp for schedule(dynamic, 256)
     for (std::size_t position = 0; position < n; ++position) {
+      if (stop_at_empty_cell && found_empty.load(std::memory_order_relaxed)) continue;
       const auto i = static_cast<std::size_t>(tree.order()[position]);
       const Vec2 center = centers[i];
       ChartCell& cell = cells[i];
@@ -486,6 +490,7 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
         }
         if (!progress) break;
       }
+      if (cell.vertices.empty()) found_empty.store(true, std::memory_order_relaxed);
       for (auto& u : cell.vertices) u += center;
     }
   }
@@ -493,7 +498,7 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
 }
 
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,
-                                           std::span<const Vec2> anchors) {
+                                           std::span<const Vec2> anchors, bool stop_at_empty_cell) {
   // Maximising f_i is minimising pow_i(v) = |v|² − 2 f_i(v) = |v − c_i|² − w_i, with
   // c_i = a_i.xy and w_i = 2 a_i.z + |c_i|².
   std::vector<Vec2> centers(dual.size());
@@ -502,7 +507,7 @@ std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const Con
     centers[i] = dual[i].head<2>();
     power_weight[i] = 2 * dual[i].z() + centers[i].squaredNorm();
   }
-  return build_power_diagram(centers, power_weight, domain, anchors);
+  return build_power_diagram(centers, power_weight, domain, anchors, stop_at_empty_cell);
 }
 
 Hull3 convex_hull_3d(std::span<const Vec3> points) {

@@ -53,6 +53,31 @@ TEST(ChartDiagram, MatchesBruteForceOnRandomPowerDiagrams) {
   }
 }
 
+TEST(ChartDiagram, StopAtEmptyCellKeepsBuiltCellsExact) {
+  // Many sites with spread heights: some cells are empty. Stopping at the first empty cell
+  // leaves an empty cell (so a line search rejects the step) and every built cell exact.
+  std::mt19937_64 random(3);
+  std::uniform_real_distribution<double> uniform(-1, 1);
+  const ConvexPolygon domain({{-1, -1}, {1, -1}, {1, 1}, {-1, 1}});
+  std::vector<Vec2> centers(3000);
+  std::vector<double> weights(centers.size());
+  for (auto& c : centers) c = Vec2(uniform(random), uniform(random));
+  for (auto& w : weights) w = 2e-4 * uniform(random);
+  const auto full = build_power_diagram(centers, weights, domain);
+  const auto stopped = build_power_diagram(centers, weights, domain, {}, true);
+  std::size_t empty_full = 0, empty_stopped = 0;
+  for (std::size_t i = 0; i < centers.size(); ++i) {
+    empty_full += full[i].vertices.empty();
+    empty_stopped += stopped[i].vertices.empty();
+    if (!stopped[i].vertices.empty()) {
+      EXPECT_NEAR(area(stopped[i]), area(full[i]), 1e-15) << i;
+    }
+  }
+  ASSERT_GT(empty_full, 0u);
+  EXPECT_GE(empty_stopped, empty_full);
+  std::printf("  %zu empty cells; %zu left empty when stopping at the first\n", empty_full, empty_stopped);
+}
+
 TEST(ChartDiagram, CollinearAndSingleSites) {
   const auto domain = ConvexPolygon::rectangle(0, 0, 1, 1);
   std::vector<Vec3> one{{5, 5, 0}};

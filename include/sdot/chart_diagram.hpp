@@ -69,14 +69,17 @@ struct Adjacency {
 /// per site) are chart points near each site's cell — e.g. the site's own chart coordinates
 /// (Klein point, gnomonic point) — used to organise the search; the cells do not depend on them,
 /// only the speed does. Default: the power centres a_i.xy, right for the plane.
+/// `stop_at_empty_cell`: the builder may stop at the first empty cell and leave the cells it
+/// has not built empty (for line searches, which reject any step that empties a cell).
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,
-                                           std::span<const Vec2> anchors = {});
+                                           std::span<const Vec2> anchors = {}, bool stop_at_empty_cell = false);
 
 /// The power diagram of centres c_i with power weights w_i (cell i = {v : |v − c_i|² − w_i ≤
 /// |v − c_j|² − w_j ∀j}) over `domain`; the same cells as `build_chart_diagram` with
 /// a_i = (c_i, (w_i − |c_i|²)/2), computed without cancellation when the caller has w directly.
 std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weights,
-                                           const ConvexPolygon& domain, std::span<const Vec2> anchors = {});
+                                           const ConvexPolygon& domain, std::span<const Vec2> anchors = {},
+                                           bool stop_at_empty_cell = false);
 
 /// Same, with the neighbour candidates already known (e.g. from a 3-D hull).
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,

@@ -50,11 +50,13 @@ struct Evaluation {
 };
 
 /// Builds the diagram and integrates every cell and (optionally) every facet; `with_cost` false
-/// leaves the cells' transport costs at 0 (the Newton iterations do not need them).
+/// leaves the cells' transport costs at 0 (the Newton iterations do not need them);
+/// `stop_at_empty_cell` (for line searches, which reject steps that empty a cell) lets a geometry
+/// that supports it stop building at the first empty cell and leave other cells empty too.
 template <Geometry G, Density<G> D>
 Evaluation<typename G::Point> evaluate(const G& geometry, const D& density, std::span<const typename G::Point> sites,
                                        const Eigen::VectorXd& weights, bool with_hessian, Timings* timings = nullptr,
-                                       bool with_cost = true);
+                                       bool with_cost = true, bool stop_at_empty_cell = false);
 
 /// Solves the semi-discrete transport problem from `density` on the geometry's source domain
 /// to the Diracs Σ ν_i δ_{y_i}: finds weights whose cells have masses ν.

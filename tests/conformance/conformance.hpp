@@ -95,6 +95,14 @@ Eigen::VectorXd solved_weights(const G& geometry, const D& density, std::span<co
   return result.weights;
 }
 
+/// n masses log-uniform in [1, ratio].
+inline Eigen::VectorXd log_uniform_masses(std::size_t n, double ratio, std::mt19937_64& random) {
+  std::uniform_real_distribution<double> uniform(0, 1);
+  Eigen::VectorXd masses(static_cast<Eigen::Index>(n));
+  for (auto& m : masses) m = std::pow(ratio, uniform(random));
+  return masses;
+}
+
 template <class G>
 class GeometryConformance : public ::testing::Test {
  protected:
@@ -102,12 +110,7 @@ class GeometryConformance : public ::testing::Test {
   using Point = typename G::Point;
   std::mt19937_64 random{12345};
 
-  Eigen::VectorXd varying_masses(std::size_t n, double ratio) {
-    std::uniform_real_distribution<double> uniform(0, 1);
-    Eigen::VectorXd masses(static_cast<Eigen::Index>(n));
-    for (auto& m : masses) m = std::pow(ratio, uniform(random));
-    return masses;
-  }
+  Eigen::VectorXd varying_masses(std::size_t n, double ratio) { return log_uniform_masses(n, ratio, random); }
 };
 
 TYPED_TEST_SUITE_P(GeometryConformance);

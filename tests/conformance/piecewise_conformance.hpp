@@ -56,12 +56,7 @@ class PiecewiseConformance : public ::testing::Test {
     return values;
   }
   static double smooth(const Point& x) { return 1 + 0.6 * std::sin(3 * Traits::chart_x(x)); }
-  Eigen::VectorXd varying_masses(std::size_t n, double ratio) {
-    std::uniform_real_distribution<double> uniform(0, 1);
-    Eigen::VectorXd masses(static_cast<Eigen::Index>(n));
-    for (auto& m : masses) m = std::pow(ratio, uniform(random));
-    return masses;
-  }
+  Eigen::VectorXd varying_masses(std::size_t n, double ratio) { return log_uniform_masses(n, ratio, random); }
   double domain_area(std::span<const Point> sites) const {
     return evaluate(geometry, UniformDensity{}, sites, geometry.default_weights(sites), false).masses.sum();
   }

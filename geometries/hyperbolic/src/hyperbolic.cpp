@@ -281,6 +281,11 @@ Eigen::VectorXd Hyperbolic::default_weights(std::span<const Point> sites) const 
 
 Diagram<Hyperbolic::Point> Hyperbolic::build_diagram(std::span<const Point> sites,
                                                      const Eigen::VectorXd& weights) const {
+  return build_diagram(sites, weights, false);
+}
+
+Diagram<Hyperbolic::Point> Hyperbolic::build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights,
+                                                     bool stop_at_empty_cell) const {
   // In the chart frame x = Λx': ⟨x, e^{−h}y⟩_M = ⟨x', e^{−h}Λ⁻¹y⟩_M = (k', 1)·a' up to x₃' > 0,
   // with a' = e^{−h} J Λ⁻¹ y. Adding 1 to every a'_z leaves the envelope unchanged and makes the
   // offsets small: a'_z + 1 = −(expm1(−h) y₃' + |y'₁₂|² / (1 + y₃')), computed without cancellation,
@@ -296,7 +301,7 @@ Diagram<Hyperbolic::Point> Hyperbolic::build_diagram(std::span<const Point> site
     anchors[i] = y.head<2>() / height;
   }
   Diagram<Point> diagram;
-  const auto cells = build_chart_diagram(dual, chart_domain_, anchors);
+  const auto cells = build_chart_diagram(dual, chart_domain_, anchors, stop_at_empty_cell);
   diagram.cells.resize(cells.size());
 #pragma omp parallel for schedule(dynamic, 256)
   for (std::size_t i = 0; i < cells.size(); ++i) {

@@ -67,6 +67,11 @@ Eigen::VectorXd Plane::default_weights(std::span<const Point> sites) const {
 }
 
 Diagram<Plane::Point> Plane::build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const {
+  return build_diagram(sites, weights, false);
+}
+
+Diagram<Plane::Point> Plane::build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights,
+                                           bool stop_at_empty_cell) const {
   // Power form relative to the domain's centroid o: centres y_i − o and power weights 2ψ_i
   // (½|x − y_i|² − ψ_i = ½(|x − y_i|² − 2ψ_i)), accurate whatever the coordinates' magnitude.
   const Vec2 origin = domain_.centroid();
@@ -79,7 +84,8 @@ Diagram<Plane::Point> Plane::build_diagram(std::span<const Point> sites, const E
   std::vector<Vec2> shifted = domain_.vertices();
   for (auto& v : shifted) v -= origin;
   Diagram<Point> diagram;
-  diagram.cells = build_power_diagram(centers, power_weights, ConvexPolygon(std::move(shifted)));
+  diagram.cells =
+      build_power_diagram(centers, power_weights, ConvexPolygon(std::move(shifted)), {}, stop_at_empty_cell);
   for (auto& cell : diagram.cells)
     for (auto& v : cell.vertices) v += origin;
   return diagram;

@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -523,11 +524,17 @@ Eigen::VectorXd Sphere::default_weights(std::span<const Point> sites) const {
 // ---- diagrams --------------------------------------------------------------------------
 
 Diagram<Sphere::Point> Sphere::build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const {
-  if (domain_ == Domain::sphere) return build_whole_sphere(sites, weights);
+  return build_diagram(sites, weights, false);
+}
+
+Diagram<Sphere::Point> Sphere::build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights,
+                                             bool stop_at_empty_cell) const {
+  if (domain_ == Domain::sphere) return build_whole_sphere(sites, weights, stop_at_empty_cell);
   return build_in_chart(sites, weights);
 }
 
-Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, const Eigen::VectorXd& weights) const {
+Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, const Eigen::VectorXd& weights,
+                                                  bool stop_at_empty_cell) const {
   const std::size_t n = sites.size();
   std::vector<Vec3> p(n);
   std::vector<double> h(n);
@@ -594,12 +601,14 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
   const double initial_half = std::min(4 * spacing, 2.0);
   constexpr double largest_half = 1e4;
   const auto count = static_cast<std::ptrdiff_t>(n);
+  std::atomic<bool> found_empty{false};
 #pragma omp parallel
   {
     std::vector<std::pair<double, int>> candidates;
     std::vector<int> processed, pending;
 #pragma omp for schedule(dynamic, 256)
     for (std::ptrdiff_t s = 0; s < count; ++s) {
+      if (stop_at_empty_cell && found_empty.load(std::memory_order_relaxed)) continue;
       const auto i = static_cast<std::size_t>(grid.site(static_cast<std::size_t>(s)));  // grid order: locality
       const Eigen::Matrix3d frame = frame_at(p[i]);
       const int bx = grid.coordinate(p[i].x()), by = grid.coordinate(p[i].y()), bz = grid.coordinate(p[i].z());
@@ -672,6 +681,7 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
         }
         break;
       }
+      if (cell.empty()) found_empty.store(true, std::memory_order_relaxed);
       diagram.cells[i] = to_sphere(cell, frame);
     }
   }

@@ -4,6 +4,7 @@
 #include <Eigen/SparseCore>
 #include <cstdio>
 #include <exception>
+#include <type_traits>
 
 namespace sdot::detail {
 
@@ -127,6 +128,17 @@ struct BlendedDensity {
   }
 };
 
+/// The geometry's diagram; with `stop_at_empty_cell`, geometries that can (an optional
+/// `build_diagram(sites, weights, true)`) stop at the first empty cell and leave the rest empty.
+template <class G>
+Diagram<typename G::Point> build_diagram(const G& geometry, std::span<const typename G::Point> sites,
+                                         const Eigen::VectorXd& weights, bool stop_at_empty_cell) {
+  if constexpr (requires { geometry.build_diagram(sites, weights, true); })
+    return geometry.build_diagram(sites, weights, stop_at_empty_cell);
+  else
+    return geometry.build_diagram(sites, weights);
+}
+
 inline bool usable_status(Status status) {
   return status == Status::converged || status == Status::precision_floor;
 }
@@ -147,11 +159,11 @@ template <sdot::Geometry G, sdot::Density<G> D>
 sdot::Evaluation<typename G::Point> sdot::evaluate(const G& geometry, const D& density,
                                                    std::span<const typename G::Point> sites,
                                                    const Eigen::VectorXd& weights, bool with_hessian, Timings* timings,
-                                                   bool with_cost) {
+                                                   bool with_cost, bool stop_at_empty_cell) {
   using Point = typename G::Point;
   auto start = detail::Clock::now();
   Evaluation<Point> result;
-  result.diagram = geometry.build_diagram(sites, weights);
+  result.diagram = detail::build_diagram(geometry, sites, weights, stop_at_empty_cell);
   if (timings) timings->diagram_s += detail::seconds_since(start);
   start = detail::Clock::now();
   const auto n = static_cast<std::ptrdiff_t>(sites.size());
@@ -325,7 +337,8 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
       for (int halving = 0; halving <= options.max_step_halvings; ++halving, step /= 2) {
         Eigen::VectorXd trial_weights = weights + step * direction;
         trial_weights.array() -= trial_weights.mean();
-        Evaluation<Point> trial = evaluate(geometry, source, sites, trial_weights, true, &summary.timings, false);
+        // A step that empties a cell is rejected (ε₀ > 0): the builder may stop at the first one.
+        Evaluation<Point> trial = evaluate(geometry, source, sites, trial_weights, true, &summary.timings, false, true);
         if (trial.masses.minCoeff() < epsilon0) continue;
         const auto trial_error = detail::mass_error(trial.masses, targets);
         if (trial_error.l2 <= (1 - step / 2) * error.l2) {
@@ -350,7 +363,11 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
   };
 
   std::string prefix;
-  if (current.masses.minCoeff() <= 0) {
+  if constexpr (std::is_same_v<D, UniformDensity>) {
+    // A non-empty cell always has mass under ρ ≡ 1 (only a degenerate polygon has none).
+    if (current.masses.minCoeff() <= 0)
+      return finish(Status::line_search_failure, "a cell has zero area at the default start");
+  } else if (current.masses.minCoeff() <= 0) {
     // Some cells lie where ρ vanishes, so the Newton system is singular. Continuation: solve for
     // ρ_t = (1 − t)ρ + t·ρ̄ (ρ̄ uniform with the same total mass, every cell gets mass) with t
     // decreasing until every cell gets mass from ρ itself.

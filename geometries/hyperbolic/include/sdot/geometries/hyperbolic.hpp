@@ -99,6 +99,10 @@ class Hyperbolic {
   /// chosen so that every u_i lies inside the domain: every cell is non-empty.
   [[nodiscard]] Eigen::VectorXd default_weights(std::span<const Point> sites) const;
   [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
+  /// With `stop_at_empty_cell`, the builder may stop at the first empty cell (see the solver's
+  /// line search) and leave the cells it has not built empty.
+  [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights,
+                                             bool stop_at_empty_cell) const;
 
   /// ρ ≡ 1 (hyperbolic area). Area: hyperbolic Van Oosterom–Strackee over a fan (exact);
   /// first moment ½ Σ_e L_e m_e (exact); cost ∫ ln(−⟨x, y⟩_M) dA by a collapsed Gauss rule on the

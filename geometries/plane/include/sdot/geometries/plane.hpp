@@ -35,6 +35,10 @@ class Plane {
   /// non-empty, also for sites outside the domain.
   [[nodiscard]] Eigen::VectorXd default_weights(std::span<const Point> sites) const;
   [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
+  /// With `stop_at_empty_cell`, the builder may stop at the first empty cell (see the solver's
+  /// line search) and leave the cells it has not built empty.
+  [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights,
+                                             bool stop_at_empty_cell) const;
 
   /// Exact area, first moment and ∫|x − y|²/2 of a polygon.
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site, bool with_cost = true) const;

@@ -73,6 +73,11 @@ class Sphere {
   /// whose cells are all non-empty (when every site lies in the open hemisphere around center()).
   [[nodiscard]] Eigen::VectorXd default_weights(std::span<const Point> sites) const;
   [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
+  /// With `stop_at_empty_cell`, the builder may stop once it finds an empty cell and leave the
+  /// cells it has not built empty: the solver's line search rejects any step that empties a
+  /// cell, so a rejected trial step then costs a fraction of a diagram.
+  [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights,
+                                             bool stop_at_empty_cell) const;
 
   /// Exact area (Van Oosterom–Strackee), exact first moment (edge formula); the cost
   /// ∫ −ln⟨x, p⟩ dA by quadrature (no closed form), accurate to about 1e-13 relative.
@@ -104,7 +109,8 @@ class Sphere {
   [[nodiscard]] std::vector<Point> edge_points(const Cell<Point>& cell, std::size_t k, int count) const;
 
  private:
-  Diagram<Point> build_whole_sphere(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
+  Diagram<Point> build_whole_sphere(std::span<const Point> sites, const Eigen::VectorXd& weights,
+                                    bool stop_at_empty_cell = false) const;
   Diagram<Point> build_in_chart(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
 
   Domain domain_ = Domain::sphere;
