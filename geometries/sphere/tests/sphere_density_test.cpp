@@ -168,3 +168,18 @@ TEST(SphereDensity, EarthLikeImageConverges) {
 }
 
 }  // namespace sdot::testing
+
+namespace sdot::testing {
+
+TEST(SphereDensity, TriangleLargerThanAHemisphereIsNamed) {
+  // Three points on the equator 120° apart: no open hemisphere holds the triangle.
+  const std::vector<Vec> vertices{Vec(1, 0, 0), Vec(-0.5, std::sqrt(0.75), 0), Vec(-0.5, -std::sqrt(0.75), 0),
+                                  Vec(0, 0, 1)};
+  const std::vector<std::array<int, 3>> triangles{{0, 1, 3}, {0, 1, 2}};
+  const std::vector<double> values(4, 1.0);
+  const std::string message =
+      input_error([&] { (void)mesh_density(Sphere(), std::span(vertices), std::span(triangles), std::span(values)); });
+  EXPECT_NE(message.find("density.triangles[1]: does not fit in an open hemisphere"), std::string::npos) << message;
+}
+
+}  // namespace sdot::testing

@@ -242,6 +242,8 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
 
   Evaluation<Point> current = evaluate(geometry, density, sites, weights, true, &summary.timings, false);
   summary.source_mass = current.masses.sum();
+  if (!(summary.source_mass > 0))
+    throw InputError("density", "has no mass on the source domain (it vanishes wherever the domain is)");
   Eigen::VectorXd targets = target_masses;
   const double target_sum = targets.sum();
   summary.mass_scale = summary.source_mass / target_sum;
