@@ -77,6 +77,9 @@ inline void use_single_threaded_blas() {
 /// the two is kept for the rest of the solve. Which wins depends on the Hessian's fill and on
 /// the BLAS (measured at 10⁵ sites with OpenBLAS: on the sphere CHOLMOD 1.6 s against LDLᵀ
 /// 2.0–2.3 s per solve, on the plane 1.44 s against 1.29 s; see docs/benchmarks.md).
+/// The choice depends on timing: two runs of the same large problem may use different solvers
+/// and differ in the last bits. Choose `ldlt` or `cholmod` explicitly for bitwise-reproducible
+/// results.
 class AutomaticLinearSolver {
  public:
   static constexpr Eigen::Index trial_size = 20000;
