@@ -332,4 +332,19 @@ TEST(Cli, BenchEveryGeometry) {
   }
 }
 
+TEST(Cli, BenchWithAMeshDensity) {
+  // --density-triangles T: a mesh density of about T triangles in every geometry.
+  for (const std::string geometry : {"plane", "sphere", "hyperbolic"}) {
+    const auto r = run("bench --geometry " + geometry + " --n 300 --density-triangles 3000 --quiet");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const json line = json::parse(r.out);
+    EXPECT_EQ(line["status"], "converged") << geometry;
+    const auto triangles = line["density_triangles"].get<double>();
+    EXPECT_GT(triangles, 1500) << geometry;
+    EXPECT_LT(triangles, 6000) << geometry;
+    EXPECT_TRUE(line.contains("density_build_s"));
+  }
+  EXPECT_EQ(run("bench --geometry plane --n 10 --density-triangles 0").exit_code, 2);
+}
+
 }  // namespace

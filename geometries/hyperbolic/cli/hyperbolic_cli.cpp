@@ -192,15 +192,26 @@ json bench_hyperbolic(const BenchRequest& request) {
   const auto sites = geometry.uniform_samples(request.n, request.seed);
   return run_bench(
       geometry, std::span<const Point>(sites), equal_masses(request.n), request, [&](std::size_t triangles) {
-        // The domain's fan from its centre, subdivided until it has ≥ `triangles`;
-        // ρ = 1 + ½ sin(3 k₁) cos(2 k₂) in Klein coordinates at the vertices.
-        TriangleMesh<Point> mesh;
-        mesh.vertices = geometry.domain();
-        mesh.vertices.push_back(geometry.center());
-        const int sides = static_cast<int>(geometry.domain().size());
-        for (int k = 0; k < sides; ++k) mesh.triangles.push_back({sides, k, (k + 1) % sides});
+        // The domain's fan from its centre, each domain edge split into m parts, then
+        // subdivided L times: sides·m·4^L triangles, m and L chosen to come closest to
+        // `triangles`. ρ = 1 + ½ sin(3 k₁) cos(2 k₂) in Klein coordinates at the vertices.
+        const auto& domain = geometry.domain();
+        const auto sides = static_cast<double>(domain.size());
         int levels = 0;
-        for (std::size_t count = mesh.triangles.size(); count < triangles; count *= 4) ++levels;
+        while (sides * std::pow(4.0, levels + 1) <= static_cast<double>(triangles)) ++levels;
+        const int parts = std::max(
+            1, static_cast<int>(std::lround(static_cast<double>(triangles) / (sides * std::pow(4.0, levels)))));
+        TriangleMesh<Point> mesh;
+        mesh.vertices.push_back(geometry.center());
+        for (std::size_t k = 0; k < domain.size(); ++k) {
+          // Points along the geodesic edge: straight in the projective chart.
+          const Eigen::Vector3d a = geometry.to_projective(domain[k]).normalized();
+          const Eigen::Vector3d b = geometry.to_projective(domain[(k + 1) % domain.size()]).normalized();
+          for (int j = 0; j < parts; ++j)
+            mesh.vertices.push_back(geometry.from_projective(a + (b - a) * (static_cast<double>(j) / parts)));
+        }
+        const int rim = static_cast<int>(mesh.vertices.size()) - 1;
+        for (int k = 0; k < rim; ++k) mesh.triangles.push_back({0, 1 + k, 1 + (k + 1) % rim});
         mesh = subdivide(geometry, mesh, levels);
         std::vector<double> values;
         for (const auto& v : mesh.vertices) {
