@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "sdot/cap_tree.hpp"
 #include "sdot/density.hpp"
 #include "sdot/geometry.hpp"
 
@@ -102,22 +103,10 @@ class PiecewiseDensity {
   [[nodiscard]] double value(const Point& x) const;
 
  private:
-  struct Node {
-    Eigen::Vector3d center;  // unit vector
-    double radius = 0;       // angle: every piece of the subtree lies in this cap
-    double cos_radius = 1, sin_radius = 0;
-    std::uint32_t begin = 0, end = 0;
-    std::int32_t left = -1, right = -1;
-  };
-
   [[nodiscard]] std::span<const Eigen::Vector3d> corners(std::size_t piece) const {
     return {corners_.data() + offsets_[piece], corners_.data() + offsets_[piece + 1]};
   }
   [[nodiscard]] Eigen::Vector3d unit(const Point& x) const { return geometry_.to_projective(x).normalized(); }
-  /// Calls visit(piece) for every piece whose cap meets the cap (center, radius).
-  template <class Visit>
-  void query(const Eigen::Vector3d& center, double radius, Visit&& visit) const;
-  std::int32_t build_tree(std::uint32_t begin, std::uint32_t end);
   /// Appends a validated piece (unit corners, counter-clockwise); build_index() afterwards.
   void add_unit_piece(const std::vector<Eigen::Vector3d>& polygon, PieceKind kind, double constant,
                       const Eigen::Vector3d& numerator, const Eigen::Vector3d& denominator);
@@ -148,9 +137,8 @@ class PiecewiseDensity {
   std::vector<double> constants_;
   std::vector<Eigen::Vector3d> numerators_, denominators_;  // linear: ρ = a·X / b·X
   std::vector<Eigen::Vector3d> cap_centers_;
-  std::vector<double> cap_radii_, cap_cos_, cap_sin_;
-  std::vector<std::uint32_t> tree_order_;
-  std::vector<Node> nodes_;
+  std::vector<double> cap_radii_;
+  CapTree tree_;  // over the pieces' bounding caps
 };
 
 /// A triangle mesh: vertices and triangles as vertex-index triples.

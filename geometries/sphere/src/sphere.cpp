@@ -9,6 +9,7 @@
 #include <numbers>
 #include <string>
 
+#include "sdot/cap_tree.hpp"
 #include "sdot/error.hpp"
 #include "sdot/quadrature.hpp"
 
@@ -150,79 +151,34 @@ class SiteGrid {
 class ScaleTree {
  public:
   ScaleTree(std::span<const Vec3> points, std::span<const double> scales)
-      : points_(points), scales_(scales), order_(points.size()) {
-    for (std::size_t k = 0; k < order_.size(); ++k) order_[k] = static_cast<int>(k);
-    nodes_.reserve(2 * points.size() / leaf_size + 2);
-    if (!points.empty()) build(0, static_cast<int>(points.size()));
+      : points_(points), scales_(scales), tree_(points), max_scale_(tree_.nodes().size(), 0.0) {
+    const auto& order = tree_.order();
+    for (std::size_t n = 0; n < tree_.nodes().size(); ++n) {
+      const auto& node = tree_.nodes()[n];
+      for (int k = node.begin; k < node.end; ++k)
+        max_scale_[n] = std::max(max_scale_[n], scales[static_cast<std::size_t>(order[static_cast<std::size_t>(k)])]);
+    }
   }
   template <class Found>
   void above(const Vec3& x, double level, Found&& found) const {
-    if (nodes_.empty()) return;
-    int stack[128];
-    int top = 0;
-    stack[top++] = 0;
-    while (top > 0) {
-      const Node& node = nodes_[stack[--top]];
-      const double c = x.dot(node.axis);
-      if (c < node.cos_radius) {
-        const double bound = c * node.cos_radius + std::sqrt(std::max(0.0, 1 - c * c)) * node.sin_radius;
-        if (node.max_scale * bound <= level) continue;
-      } else if (node.max_scale <= level) {
-        continue;
-      }
-      if (node.left < 0) {
-        for (int k = node.begin; k < node.end; ++k) {
-          const int j = order_[k];
-          if (scales_[j] * x.dot(points_[j]) > level) found(j);
-        }
-      } else {
-        stack[top++] = node.left;
-        stack[top++] = node.right;
-      }
-    }
+    tree_.traverse(
+        [&](const CapTree::Node& node, int index) {
+          const double scale = max_scale_[static_cast<std::size_t>(index)];
+          const double c = x.dot(node.axis);
+          if (c >= node.cos_radius) return scale > level;  // x inside the cone
+          const double bound = c * node.cos_radius + std::sqrt(std::max(0.0, 1 - c * c)) * node.sin_radius;
+          return scale * bound > level;
+        },
+        [&](int j) {
+          if (scales_[static_cast<std::size_t>(j)] * x.dot(points_[static_cast<std::size_t>(j)]) > level) found(j);
+        });
   }
 
  private:
-  static constexpr int leaf_size = 8;
-  struct Node {
-    Vec3 axis = Vec3::UnitZ();
-    double cos_radius = 1, sin_radius = 0, max_scale = 0;
-    int begin = 0, end = 0, left = -1, right = -1;
-  };
-  int build(int begin, int end) {
-    const int index = static_cast<int>(nodes_.size());
-    nodes_.push_back({});
-    Vec3 low = Vec3::Constant(INFINITY), high = Vec3::Constant(-INFINITY), sum = Vec3::Zero();
-    double max_scale = 0;
-    for (int k = begin; k < end; ++k) {
-      low = low.cwiseMin(points_[order_[k]]);
-      high = high.cwiseMax(points_[order_[k]]);
-      sum += points_[order_[k]];
-      max_scale = std::max(max_scale, scales_[order_[k]]);
-    }
-    // The cone: axis along the mean direction, radius the largest angle to a member (padded).
-    Vec3 axis = sum.norm() > 1e-12 ? Vec3(sum.normalized()) : Vec3::UnitZ();
-    double cos_radius = 1;
-    for (int k = begin; k < end; ++k) cos_radius = std::min(cos_radius, axis.dot(points_[order_[k]]));
-    cos_radius = std::max(-1.0, cos_radius - 1e-12);
-    const double sin_radius = std::sqrt(std::max(0.0, 1 - cos_radius * cos_radius)) + 1e-12;
-    int left = -1, right = -1;
-    if (end - begin > leaf_size) {
-      Eigen::Index split = 0;
-      (high - low).maxCoeff(&split);
-      const int middle = (begin + end) / 2;
-      std::nth_element(order_.begin() + begin, order_.begin() + middle, order_.begin() + end,
-                       [&](int a, int b) { return points_[a][split] < points_[b][split]; });
-      left = build(begin, middle);
-      right = build(middle, end);
-    }
-    nodes_[index] = {axis, cos_radius, sin_radius, max_scale, begin, end, left, right};
-    return index;
-  }
   std::span<const Vec3> points_;
   std::span<const double> scales_;
-  std::vector<int> order_;
-  std::vector<Node> nodes_;
+  CapTree tree_;
+  std::vector<double> max_scale_;
 };
 
 /// Clips the chart cell of site i (gnomonic chart at p_i with tangent frame t1, t2) with the

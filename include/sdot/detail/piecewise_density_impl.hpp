@@ -127,8 +127,6 @@ void sdot::PiecewiseDensity<G>::add_unit_piece(const std::vector<Eigen::Vector3d
   denominators_.push_back(denominator);
   cap_centers_.push_back(center);
   cap_radii_.push_back(radius);
-  cap_cos_.push_back(std::cos(radius));
-  cap_sin_.push_back(std::sin(radius));
   for (std::size_t k = 0; k < corners.size(); ++k) {
     corners_.push_back(corners[k]);
     normals_.push_back(corners[k].cross(corners[(k + 1) % corners.size()]).normalized());
@@ -138,81 +136,7 @@ void sdot::PiecewiseDensity<G>::add_unit_piece(const std::vector<Eigen::Vector3d
 
 template <sdot::ProjectiveGeometry G>
 void sdot::PiecewiseDensity<G>::build_index() {
-  nodes_.clear();
-  tree_order_.resize(kinds_.size());
-  std::iota(tree_order_.begin(), tree_order_.end(), 0u);
-  if (!kinds_.empty()) build_tree(0, static_cast<std::uint32_t>(kinds_.size()));
-}
-
-template <sdot::ProjectiveGeometry G>
-std::int32_t sdot::PiecewiseDensity<G>::build_tree(std::uint32_t begin, std::uint32_t end) {
-  const auto index = static_cast<std::int32_t>(nodes_.size());
-  nodes_.emplace_back();
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  Eigen::Vector3d lower = Eigen::Vector3d::Constant(INFINITY), upper = -lower;
-  for (std::uint32_t k = begin; k < end; ++k) {
-    const auto& c = cap_centers_[tree_order_[k]];
-    sum += c;
-    lower = lower.cwiseMin(c);
-    upper = upper.cwiseMax(c);
-  }
-  Node node;
-  node.begin = begin;
-  node.end = end;
-  if (sum.norm() > 1e-9) {
-    node.center = sum.normalized();
-    for (std::uint32_t k = begin; k < end; ++k) {
-      const auto p = tree_order_[k];
-      node.radius = std::max(node.radius, detail::angle_between(node.center, cap_centers_[p]) + cap_radii_[p]);
-    }
-    node.radius = std::min(node.radius, std::numbers::pi);
-  } else {
-    node.center = Eigen::Vector3d::UnitZ();
-    node.radius = std::numbers::pi;
-  }
-  constexpr std::uint32_t leaf_size = 8;
-  if (end - begin > leaf_size) {
-    int axis = 0;
-    (upper - lower).maxCoeff(&axis);
-    const std::uint32_t middle = begin + (end - begin) / 2;
-    std::nth_element(tree_order_.begin() + begin, tree_order_.begin() + middle, tree_order_.begin() + end,
-                     [&](std::uint32_t a, std::uint32_t b) { return cap_centers_[a][axis] < cap_centers_[b][axis]; });
-    node.left = build_tree(begin, middle);
-    node.right = build_tree(middle, end);
-  }
-  node.cos_radius = std::cos(node.radius);
-  node.sin_radius = std::sin(node.radius);
-  nodes_[static_cast<std::size_t>(index)] = node;
-  return index;
-}
-
-template <sdot::ProjectiveGeometry G>
-template <class Visit>
-void sdot::PiecewiseDensity<G>::query(const Eigen::Vector3d& center, double radius, Visit&& visit) const {
-  if (nodes_.empty()) return;
-  // Caps (c₁, r₁) and (c₂, r₂) meet when ∠(c₁, c₂) ≤ r₁ + r₂, i.e. c₁·c₂ ≥ cos r₁ cos r₂ − sin r₁ sin r₂
-  // (for r₁ + r₂ < π): no inverse cosine in the loop.
-  constexpr double slack = 1e-12;
-  const double cos_radius = std::cos(radius), sin_radius = std::sin(radius);
-  auto meets = [&](const Eigen::Vector3d& c, double r, double cos_r, double sin_r) {
-    return radius + r >= std::numbers::pi || center.dot(c) >= cos_radius * cos_r - sin_radius * sin_r - slack;
-  };
-  std::int32_t stack[128];
-  int top = 0;
-  stack[top++] = 0;
-  while (top > 0) {
-    const Node& node = nodes_[static_cast<std::size_t>(stack[--top])];
-    if (!meets(node.center, node.radius, node.cos_radius, node.sin_radius)) continue;
-    if (node.left < 0) {
-      for (std::uint32_t k = node.begin; k < node.end; ++k) {
-        const auto p = tree_order_[k];
-        if (meets(cap_centers_[p], cap_radii_[p], cap_cos_[p], cap_sin_[p])) visit(std::size_t{p});
-      }
-    } else {
-      stack[top++] = node.left;
-      stack[top++] = node.right;
-    }
-  }
+  tree_ = CapTree(cap_centers_, cap_radii_);
 }
 
 template <sdot::ProjectiveGeometry G>
@@ -278,7 +202,8 @@ void sdot::PiecewiseDensity<G>::for_each_overlap(const Cell<Point>& cell, Visit&
     for (const auto& v : polygon) r = std::max(r, detail::angle_between(center, v));
     if (r < std::numbers::pi / 2 - 1e-6) radius = r;
   }
-  query(center, radius, [&](std::size_t piece) {
+  tree_.query(center, radius, [&](int index) {
+    const auto piece = static_cast<std::size_t>(index);
     clipped = polygon;
     for (std::uint32_t k = offsets_[piece]; k < offsets_[piece + 1] && clipped.size() >= 3; ++k) {
       detail::clip_homogeneous(clipped, normals_[k], scratch);
@@ -320,7 +245,8 @@ double sdot::PiecewiseDensity<G>::facet_weight(const G& geometry, const Point& a
   const Eigen::Vector3d ua = unit(a), ub = unit(b);
   const Eigen::Vector3d middle = (ua + ub).normalized();
   double result = 0;
-  query(middle, detail::angle_between(ua, ub) / 2, [&](std::size_t piece) {
+  tree_.query(middle, detail::angle_between(ua, ub) / 2, [&](int index) {
+    const auto piece = static_cast<std::size_t>(index);
     if (kinds_[piece] == PieceKind::constant && constants_[piece] == 0) return;
     double s0 = 0, s1 = 1, share = 1;
     for (std::uint32_t k = offsets_[piece]; k < offsets_[piece + 1]; ++k) {
@@ -368,7 +294,8 @@ sdot::PiecewiseDensity<G> sdot::PiecewiseDensity<G>::restricted_to(const std::ve
   PiecewiseDensity<G> result(geometry_, {}, field_, quadrature_order_, name_);
   std::vector<Eigen::Vector3d> clipped, scratch;
   for (std::size_t r = 0; r < validated.piece_count(); ++r) {
-    query(validated.cap_centers_[r], validated.cap_radii_[r], [&](std::size_t piece) {
+    tree_.query(validated.cap_centers_[r], validated.cap_radii_[r], [&](int index) {
+      const auto piece = static_cast<std::size_t>(index);
       const auto piece_corners = corners(piece);
       clipped.assign(piece_corners.begin(), piece_corners.end());
       for (std::uint32_t k = validated.offsets_[r]; k < validated.offsets_[r + 1] && clipped.size() >= 3; ++k) {
@@ -407,7 +334,8 @@ double sdot::PiecewiseDensity<G>::value(const Point& x) const {
   const Eigen::Vector3d ux = unit(x);
   double found = 0;
   bool done = false;
-  query(ux, 0, [&](std::size_t piece) {
+  tree_.query(ux, 0, [&](int index) {
+    const auto piece = static_cast<std::size_t>(index);
     if (done) return;
     for (std::uint32_t k = offsets_[piece]; k < offsets_[piece + 1]; ++k)
       if (normals_[k].dot(ux) < -1e-15) return;
