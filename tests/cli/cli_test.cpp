@@ -10,6 +10,8 @@
 #include <sstream>
 #include <string>
 
+#include "support/scratch_directory.hpp"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -20,29 +22,12 @@ struct Run {
   std::string out, err;
 };
 
-// A per-process scratch directory, removed when the test process exits.
-struct ScratchDirectory {
-  fs::path path;
-  ~ScratchDirectory() {
-    std::error_code ignored;
-    fs::remove_all(path, ignored);
-  }
-};
-
 fs::path scratch() {
-  static const ScratchDirectory dir{[] {
-    const fs::path d = fs::temp_directory_path() / ("sdot_cli_test_" + std::to_string(::getpid()));
-    fs::create_directories(d);
-    return d;
-  }()};
-  return dir.path;
+  return sdot::testing::scratch_directory("sdot_cli_test");
 }
 
 std::string slurp(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
+  return sdot::testing::read_text(path);
 }
 
 Run run(const std::string& arguments) {

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "blue_noise.hpp"
+#include "support/scratch_directory.hpp"
 
 namespace fs = std::filesystem;
 using blue_noise::Point;
@@ -20,29 +21,10 @@ using json = nlohmann::json;
 
 namespace {
 
-// A per-process scratch directory, removed when the test process exits.
-struct ScratchDirectory {
-  fs::path path;
-  ~ScratchDirectory() {
-    std::error_code ignored;
-    fs::remove_all(path, ignored);
-  }
-};
+using sdot::testing::read_text;
 
 fs::path scratch() {
-  static const ScratchDirectory directory{[] {
-    fs::path path = fs::temp_directory_path() / ("blue_noise_test_" + std::to_string(::getpid()));
-    fs::create_directories(path);
-    return path;
-  }()};
-  return directory.path;
-}
-
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
+  return sdot::testing::scratch_directory("blue_noise_test");
 }
 
 /// Runs the command with `arguments`, standard error to `stderr_path`; returns its exit code.

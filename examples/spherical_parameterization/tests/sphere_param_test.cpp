@@ -13,6 +13,7 @@
 #include "param.hpp"
 #include "pipeline.hpp"
 #include "report.hpp"
+#include "support/scratch_directory.hpp"
 #include "test_meshes.hpp"
 
 using namespace sphparam;
@@ -20,27 +21,10 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// A per-process scratch directory, removed when the test process exits.
-struct ScratchDirectory {
-  fs::path path;
-  ~ScratchDirectory() {
-    std::error_code ignored;
-    fs::remove_all(path, ignored);
-  }
-};
+using sdot::testing::write_text;
 
 fs::path temp_dir() {
-  static const ScratchDirectory dir{[] {
-    fs::path d = fs::temp_directory_path() / ("sphparam_test_" + std::to_string(::getpid()));
-    fs::create_directories(d);
-    return d;
-  }()};
-  return dir.path;
-}
-
-void write_text(const fs::path& p, const std::string& text) {
-  std::ofstream out(p, std::ios::binary);
-  out << text;
+  return sdot::testing::scratch_directory("sphparam_test");
 }
 
 const Defect* find_defect(const Validation& v, const std::string& name) {
