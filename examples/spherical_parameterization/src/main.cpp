@@ -19,7 +19,9 @@ namespace {
 
 const char* usage =
     "usage: sdot-sphere-param INPUT -o OUTPUT [--report REPORT.json] [--svg HISTOGRAM.svg]\n"
-    "                         [--target-weights FILE] [--refine N] [--no-optimize]\n"
+    "                         [--target-weights FILE] [--refine N] [--max-refine N] [--reweightings N]\n"
+    "                         [--no-optimize]"
+    "\n"
     "                         [--ot-tolerance T] [--sweeps N] [--ply-ascii] [--quiet]\n"
     "\n"
     "Maps a closed genus-0 triangle mesh onto the unit sphere without area distortion and without\n"
@@ -32,6 +34,10 @@ const char* usage =
     "  --target-weights FILE  one positive factor per vertex: the region around a vertex gets\n"
     "                         its mesh area times the factor (area-controllable map)\n"
     "  --refine N             Dirac refinement levels of the OT stage (default 0; -1: 1 up to 15k vertices)\n"
+    "  --max-refine N         when flips survive the untangling, rerun OT with one more refinement\n"
+    "                         level, up to N levels (default 1)\n"
+    "  --reweightings N       stretch reweightings of the initial Tutte map at most (default 40;\n"
+    "                         they run only while more than 0.5% of the faces are crushed below e^-4)\n"
     "  --no-optimize          skip the final area-correcting optimization\n"
     "  --separation-threshold X  run site-separation passes while the shortest edge of the map\n"
     "                         is below X*sqrt(4pi/N) (default 5e-5; 0 disables them)\n"
@@ -109,6 +115,10 @@ int main(int argc, char** argv) {
       weights_path = value("a file");
     else if (a == "--refine")
       options.refine = std::atoi(value("a number").c_str());
+    else if (a == "--max-refine")
+      options.max_refine = std::atoi(value("a number").c_str());
+    else if (a == "--reweightings")
+      options.max_reweightings = std::atoi(value("a number").c_str());
     else if (a == "--no-optimize")
       options.optimize = false;
     else if (a == "--separation-delta")

@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
+#include <Eigen/SparseLU>
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -158,17 +159,32 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& /*topo*/, c
       for (auto& q : s) q.y() = -q.y();
     if (targets.empty() || iteration >= max_reweightings) break;
     // Stretch-weighted Laplacian (SEM-like, but with positive weights, so every iterate is a
-    // valid planar embedding): crushed regions get weaker springs and open up.
-    std::vector<Vec3> balanced = s;
-    std::vector<double> vm(nv, 0.0);
-    for (std::size_t f = 0; f < nf; ++f)
-      for (int v : mesh.faces[f]) vm[u(v)] += targets[f] / 3;
-    mobius_balance(balanced, vm, 1e-6, 100);
-    std::vector<double> logs(nf);
+    // valid planar embedding): crushed regions get weaker springs and open up. The stretch is
+    // measured in the plane (area × the stereographic factor 4/(1+r²)²): crushed faces are
+    // 1e-12 across, accurate there but below the resolution of points on the unit sphere.
+    std::vector<Eigen::Vector2d> planar(nv);
+    for (std::size_t i = 0; i < nv; ++i) {
+      if (index[i] >= 0) {
+        planar[i] = z.row(index[i]).transpose();
+      } else {
+        for (int c = 0; c < 3; ++c)
+          if (b[c] == static_cast<int>(i)) planar[i] = bpos[c];
+      }
+    }
+    std::vector<double> logs(nf, 0.0);
     for (std::size_t f = 0; f < nf; ++f) {
+      if (f == outer) continue;
       const auto& t = mesh.faces[f];
-      const double a = signed_spherical_triangle_area(balanced[u(t[0])], balanced[u(t[1])], balanced[u(t[2])]);
-      logs[f] = std::log(std::max(a, 1e-300) / targets[f]);
+      const Eigen::Vector2d e1 = planar[u(t[1])] - planar[u(t[0])], e2 = planar[u(t[2])] - planar[u(t[0])];
+      const double area = 0.5 * std::abs(e1.x() * e2.y() - e1.y() * e2.x());
+      const double r2 = ((planar[u(t[0])] + planar[u(t[1])] + planar[u(t[2])]) / 3).squaredNorm();
+      logs[f] = std::log(std::max(area * 4 / ((1 + r2) * (1 + r2)), 1e-300) / targets[f]);
+    }
+    {
+      std::vector<double> sorted = logs;  // global scale is arbitrary before balancing: centre on the median
+      std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(nf / 2), sorted.end());
+      const double median = sorted[nf / 2];
+      for (double& x : logs) x -= median;
     }
     std::vector<double> sorted = logs;
     const std::size_t q = sorted.size() / 200;  // 0.5% quantile of log stretch
@@ -268,6 +284,111 @@ std::size_t untangle(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& 
         if ((ring < 3 || !allow_free) && (bad1 > bad0 || (bad1 == bad0 && bad0 > 0 && w1 < w0 && ring == 0)))
           s[i] = old;
       }
+  }
+  return count_flips(mesh, s);
+}
+
+// ------------------------------------------------------------------------ patch re-embedding
+std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& s, int max_rings) {
+  const std::size_t nv = s.size();
+  auto det = [&](std::size_t f) {
+    const auto& t = mesh.faces[f];
+    return s[u(t[0])].dot(s[u(t[1])].cross(s[u(t[2])]));
+  };
+  std::vector<int> depth(nv, -1), free_index(nv, -1);
+  std::vector<char> tried_face(mesh.faces.size(), 0);
+  for (;;) {
+    std::size_t seed = mesh.faces.size();
+    for (std::size_t f = 0; f < mesh.faces.size() && seed == mesh.faces.size(); ++f)
+      if (!tried_face[f] && det(f) <= 0) seed = f;
+    if (seed == mesh.faces.size()) break;  // no flips left, or none we can still repair
+    tried_face[seed] = 1;
+    bool repaired = false;
+    for (int rings = 1; rings <= max_rings && !repaired; rings = rings < 4 ? rings + 1 : rings * 3 / 2) {
+      // free vertices: within `rings` edges of the flipped face; fixed: the ring just outside
+      std::vector<int> free_vertices(mesh.faces[seed].begin(), mesh.faces[seed].end()), fixed;
+      std::fill(depth.begin(), depth.end(), -1);
+      for (int v : free_vertices) depth[u(v)] = 0;
+      for (std::size_t head = 0; head < free_vertices.size(); ++head) {
+        const int v = free_vertices[head];
+        for (int k = topo.nbr_offsets[u(v)]; k < topo.nbr_offsets[u(v) + 1]; ++k) {
+          const int w = topo.nbrs[u(k)];
+          if (depth[u(w)] >= 0) continue;
+          depth[u(w)] = depth[u(v)] + 1;
+          (depth[u(w)] <= rings ? free_vertices : fixed).push_back(w);
+        }
+      }
+      if (free_vertices.size() > nv / 4) break;  // not a small disk any more
+      // gnomonic chart centred on the patch: great circles are lines, so orientation is kept
+      Vec3 centre = Vec3::Zero();
+      for (int v : free_vertices) centre += s[u(v)];
+      for (int v : fixed) centre += s[u(v)];
+      if (!(centre.norm() > 1e-12)) break;
+      centre.normalize();
+      bool in_hemisphere = true;
+      for (int v : fixed) in_hemisphere = in_hemisphere && s[u(v)].dot(centre) > 0.2;
+      for (int v : free_vertices) in_hemisphere = in_hemisphere && s[u(v)].dot(centre) > 0.2;
+      if (!in_hemisphere) break;
+      const Vec3 e1 = centre.unitOrthogonal(), e2 = centre.cross(e1);
+      auto chart = [&](int v) -> Eigen::Vector2d {
+        const Vec3& p = s[u(v)];
+        return Eigen::Vector2d(p.dot(e1), p.dot(e2)) / p.dot(centre);
+      };
+      for (std::size_t i = 0; i < free_vertices.size(); ++i) free_index[u(free_vertices[i])] = static_cast<int>(i);
+      // Floater's mean-value weights from the current chart positions: positive, so a convex
+      // enough boundary gives an embedding (Tutte/Floater), and the unflipped part of the patch
+      // is close to a fixed point, so the map changes little there.
+      const auto m = static_cast<Eigen::Index>(free_vertices.size());
+      std::vector<Eigen::Triplet<double>> triplets;
+      Eigen::MatrixX2d rhs = Eigen::MatrixX2d::Zero(m, 2);
+      Eigen::VectorXd diagonal = Eigen::VectorXd::Zero(m);
+      for (std::size_t i = 0; i < free_vertices.size(); ++i) {
+        const int v = free_vertices[i];
+        const Eigen::Vector2d pv = chart(v);
+        for (int k = topo.face_offsets[u(v)]; k < topo.face_offsets[u(v) + 1]; ++k) {
+          const auto& f = mesh.faces[u(topo.vfaces[u(k)])];
+          int a = 0;
+          while (f[u(a)] != v) ++a;
+          const int b = f[u((a + 1) % 3)], c = f[u((a + 2) % 3)];
+          const Eigen::Vector2d db = chart(b) - pv, dc = chart(c) - pv;
+          const double lb = std::max(db.norm(), 1e-14), lc = std::max(dc.norm(), 1e-14);
+          const double angle = std::acos(std::clamp(db.dot(dc) / (lb * lc), -1.0, 1.0));
+          const double half_tan = std::tan(std::clamp(angle, 1e-6, M_PI - 1e-3) / 2);
+          for (auto [w, length] : {std::pair{b, lb}, std::pair{c, lc}}) {
+            const double weight = half_tan / length;
+            diagonal[static_cast<Eigen::Index>(i)] += weight;
+            if (free_index[u(w)] >= 0)
+              triplets.emplace_back(static_cast<Eigen::Index>(i), free_index[u(w)], -weight);
+            else
+              rhs.row(static_cast<Eigen::Index>(i)) += weight * chart(w).transpose();
+          }
+        }
+      }
+      for (Eigen::Index i = 0; i < m; ++i) triplets.emplace_back(i, i, diagonal[i]);
+      Eigen::SparseMatrix<double> laplacian(m, m);
+      laplacian.setFromTriplets(triplets.begin(), triplets.end());
+      Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(laplacian);
+      bool ok = lu.info() == Eigen::Success;
+      Eigen::MatrixX2d x;
+      if (ok) x = lu.solve(rhs), ok = lu.info() == Eigen::Success && x.allFinite();
+      if (ok) {
+        std::vector<Vec3> saved(free_vertices.size());
+        for (std::size_t i = 0; i < free_vertices.size(); ++i) {
+          const int v = free_vertices[i];
+          saved[i] = s[u(v)];
+          const auto r = static_cast<Eigen::Index>(i);
+          s[u(v)] = (centre + x(r, 0) * e1 + x(r, 1) * e2).normalized();
+        }
+        for (std::size_t i = 0; i < free_vertices.size() && ok; ++i)
+          for (int k = topo.face_offsets[u(free_vertices[i])]; k < topo.face_offsets[u(free_vertices[i]) + 1]; ++k)
+            if (det(u(topo.vfaces[u(k)])) <= 0) ok = false;
+        if (ok)
+          repaired = true;
+        else
+          for (std::size_t i = 0; i < free_vertices.size(); ++i) s[u(free_vertices[i])] = saved[i];
+      }
+      for (int v : free_vertices) free_index[u(v)] = -1;
+    }
   }
   return count_flips(mesh, s);
 }

@@ -29,9 +29,12 @@ std::vector<double> vertex_targets(const Mesh& mesh, const std::vector<double>& 
 /// Planar Tutte embedding (positive clamped-cotangent weights) with the largest face as the
 /// outer triangle, mapped to the unit sphere by inverse stereographic projection, oriented
 /// outward. The mesh must be outward oriented. With `targets` (face target areas), the weights
-/// are then multiplied by the stretch (image area / target) of the previous map, up to
-/// `max_reweightings` times, while more than 0.5% of the faces are crushed below e^-4: this
-/// opens up the exponentially crushed protrusions of harmonic maps (fingers, ears).
+/// are then multiplied by the square root of the stretch (image area / target, clamped to
+/// e^±4) of the previous map, up to `max_reweightings` times, while more than 0.5% of the faces
+/// are crushed below e^-4 relative to the median stretch: this opens up the exponentially
+/// crushed protrusions of harmonic maps (fingers, ears, arm.off's hand). The stretch is measured
+/// on the planar embedding (times the stereographic area factor): crushed faces there are 1e-12
+/// across, far below what points on the unit sphere resolve.
 std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets = {},
                                    int max_reweightings = 0, int* reweightings = nullptr);
 
@@ -48,6 +51,13 @@ std::size_t count_flips(const Mesh& mesh, const std::vector<Vec3>& s);
 /// With `allow_free` false, moves never increase the number of flipped faces around a vertex.
 std::size_t untangle(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& s, int max_rounds = 400,
                      bool allow_free = true);
+
+/// Repairs flipped faces by re-embedding a disk around each: the vertices within k rings of a
+/// flipped face are placed by a Floater (mean-value, positive-weight) embedding in a gnomonic
+/// chart, with the next ring fixed; k grows (1, 2, 3, 4, 6, …, up to `max_rings`) until no face of
+/// the patch is flipped. Patches that cannot be repaired are left as they were. Returns the
+/// number of flipped faces left.
+std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& s, int max_rings = 64);
 
 struct OptimizeOptions {
   int max_sweeps = 200;

@@ -280,91 +280,117 @@ PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
       const std::string note = separate_clusters(s, masses, options.separation_delta * h0, R.ot);
       record("separation_pass_" + std::to_string(pass + 1), since(tp), s, note);
     }
+  }
+  // 2b–4. OT on the mesh vertices (and refined Diracs), centroids, untangling. Should flips
+  //       survive the untangling, the stage reruns from the same start with one more Dirac
+  //       refinement level: finer Diracs sample the mesh better and leave fewer, smaller folds.
+  const std::vector<Vec3> separated = s;
+  const int max_refine = std::max(refine, options.max_refine);
+  for (int level = refine;; ++level) {
+    s = separated;
+    R.ot = OtRecord{};
+    R.ot.refine = level;
     t = Clock::now();
-    Mesh dirac_mesh = mesh;
-    std::vector<Vec3> sites = s;
-    std::vector<double> factors = options.vertex_factors;
-    for (int level = 0; level < refine; ++level) {
-      Mesh fine = subdivide(dirac_mesh);
-      sites.resize(fine.vertices.size());
-      if (!factors.empty()) factors.resize(fine.vertices.size());
-      for (std::size_t fi = 0; fi < dirac_mesh.faces.size(); ++fi) {
-        const auto& coarse = dirac_mesh.faces[fi];
-        const auto& centre = fine.faces[4 * fi + 3];  // (ab, bc, ca)
-        const int ends[3][2] = {{coarse[0], coarse[1]}, {coarse[1], coarse[2]}, {coarse[2], coarse[0]}};
-        for (int k = 0; k < 3; ++k) {
-          const auto m = u(centre[u(k)]);
-          sites[m] = (sites[u(ends[k][0])] + sites[u(ends[k][1])]).normalized();
-          if (!factors.empty()) factors[m] = 0.5 * (factors[u(ends[k][0])] + factors[u(ends[k][1])]);
+    {
+      Mesh dirac_mesh = mesh;
+      std::vector<Vec3> sites = s;
+      std::vector<double> factors = options.vertex_factors;
+      for (int split = 0; split < level; ++split) {
+        Mesh fine = subdivide(dirac_mesh);
+        sites.resize(fine.vertices.size());
+        if (!factors.empty()) factors.resize(fine.vertices.size());
+        for (std::size_t fi = 0; fi < dirac_mesh.faces.size(); ++fi) {
+          const auto& coarse = dirac_mesh.faces[fi];
+          const auto& centre = fine.faces[4 * fi + 3];  // (ab, bc, ca)
+          const int ends[3][2] = {{coarse[0], coarse[1]}, {coarse[1], coarse[2]}, {coarse[2], coarse[0]}};
+          for (int k = 0; k < 3; ++k) {
+            const auto m = u(centre[u(k)]);
+            sites[m] = (sites[u(ends[k][0])] + sites[u(ends[k][1])]).normalized();
+            if (!factors.empty()) factors[m] = 0.5 * (factors[u(ends[k][0])] + factors[u(ends[k][1])]);
+          }
         }
+        dirac_mesh = std::move(fine);
       }
-      dirac_mesh = std::move(fine);
+      const auto dirac_targets = face_targets(dirac_mesh, factors);
+      const auto dirac_masses = vertex_targets(dirac_mesh, dirac_targets);
+      R.ot.sites = sites.size();
+      say("OT: " + std::to_string(sites.size()) + " Diracs (refinement " + std::to_string(level) + ")");
+      OtOutcome o = solve_ot(sites, dirac_masses, options.ot_tolerance, options.ot_max_iterations, say, &R.ot);
+      if (o.usable)
+        for (std::size_t i = 0; i < s.size(); ++i) s[i] = o.centroids[i];
     }
-    const auto dirac_targets = face_targets(dirac_mesh, factors);
-    const auto dirac_masses = vertex_targets(dirac_mesh, dirac_targets);
-    R.ot.sites = sites.size();
-    say("OT: " + std::to_string(sites.size()) + " Diracs (refinement " + std::to_string(refine) + ")");
-    OtOutcome o = solve_ot(sites, dirac_masses, options.ot_tolerance, options.ot_max_iterations, say, &R.ot);
-    if (o.usable)
-      for (std::size_t i = 0; i < s.size(); ++i) s[i] = o.centroids[i];
-  }
-#else
-  R.ot.status = "unavailable";
-  R.ot.message = "built without the sphere geometry";
-#endif
-  record("ot_centroids", since(t), s, "OT " + R.ot.status + ", " + std::to_string(R.ot.iterations) + " Newton it");
-
-  // 4. Untangle. First area-aware: a regularised area energy log²(A_ε/T) with a decreasing ε
-  //    (inverted faces have finite energy, vertices can pass through them); then monotone
-  //    Laplacian moves around what is left, then free Laplacian smoothing on growing rings.
-  t = Clock::now();
-  if (count_flips(mesh, s) > 0) {
-    OptimizeOptions uo;
-    uo.conformal_weight = 0;
-    uo.max_sweeps = 60;
-    uo.activity_threshold = 1e-4;
-    for (double eps : {1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5}) {
-      uo.regularization = eps;
-      optimize_area(mesh, topo, targets, s, uo);
-      if (count_flips(mesh, s) == 0) break;
-    }
-    record("untangle_regularized", since(t), s, "regularised area energy, eps 0.1 -> 1e-5");
+    record("ot_centroids", since(t), s, "OT " + R.ot.status + ", " + std::to_string(R.ot.iterations) + " Newton it");
+    // 4. Untangle. First area-aware: a regularised area energy log²(A_ε/T) with a decreasing ε
+    //    (inverted faces have finite energy, vertices can pass through them); then monotone
+    //    Laplacian moves around what is left, then free Laplacian smoothing on growing rings.
     t = Clock::now();
-  }
-  R.untangle_remaining = count_flips(mesh, s);
-  for (int round = 0; round < 4 && R.untangle_remaining > 0; ++round) {
-    // monotone Laplacian moves rearrange the stuck spots, then the regularised energy again
-    untangle(mesh, topo, s, 30, false);
-    OptimizeOptions uo;
-    uo.conformal_weight = 0;
-    uo.max_sweeps = 100;
-    uo.activity_threshold = 1e-5;
-    for (double eps : {1e-2, 1e-3, 1e-4, 1e-5}) {
-      uo.regularization = eps;
-      optimize_area(mesh, topo, targets, s, uo);
-      if (count_flips(mesh, s) == 0) break;
+    if (count_flips(mesh, s) > 0) {
+      OptimizeOptions uo;
+      uo.conformal_weight = 0;
+      uo.max_sweeps = 60;
+      uo.activity_threshold = 1e-4;
+      for (double eps : {1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5}) {
+        uo.regularization = eps;
+        optimize_area(mesh, topo, targets, s, uo);
+        if (count_flips(mesh, s) == 0) break;
+      }
+      record("untangle_regularized", since(t), s, "regularised area energy, eps 0.1 -> 1e-5");
+      t = Clock::now();
     }
     R.untangle_remaining = count_flips(mesh, s);
-  }
-  if (R.untangle_remaining > 0) {
-    std::vector<Vec3> trial = s;  // free smoothing may destroy more than it repairs: keep the best
-    const std::size_t left = untangle(mesh, topo, trial, 400, true);
-    if (left < R.untangle_remaining) s = std::move(trial), R.untangle_remaining = left;
-    if (R.untangle_remaining == 0) {
-      // the smoothing damaged the area: repair it with the regularised energy, keep it if flip-free
-      std::vector<Vec3> repaired = s;
+    if (R.untangle_remaining > 0) {
+      // re-embed a growing disk around each flipped face (positive weights), then repair its areas
+      const std::size_t before = R.untangle_remaining;
+      R.untangle_remaining = repair_flips_by_patches(mesh, topo, s);
+      record("untangle_patches", since(t), s, std::to_string(before) + " flipped faces before");
+      t = Clock::now();
+    }
+    if (R.untangle_remaining > 0 && level < max_refine) {
+      // the Laplacian rounds below are slow and rarely finish the job: refine the Diracs first
+      say(std::to_string(R.untangle_remaining) + " flipped faces left: OT again with refinement " +
+          std::to_string(level + 1));
+      continue;
+    }
+    for (int round = 0; round < 4 && R.untangle_remaining > 0; ++round) {
+      // monotone Laplacian moves rearrange the stuck spots, then the regularised energy again
+      untangle(mesh, topo, s, 30, false);
       OptimizeOptions uo;
       uo.conformal_weight = 0;
       uo.max_sweeps = 100;
       uo.activity_threshold = 1e-5;
-      for (double eps : {1e-3, 1e-4, 1e-5}) {
+      for (double eps : {1e-2, 1e-3, 1e-4, 1e-5}) {
         uo.regularization = eps;
-        optimize_area(mesh, topo, targets, repaired, uo);
+        optimize_area(mesh, topo, targets, s, uo);
+        if (count_flips(mesh, s) == 0) break;
       }
-      if (count_flips(mesh, repaired) == 0) s = std::move(repaired);
+      R.untangle_remaining = count_flips(mesh, s);
     }
+    if (R.untangle_remaining > 0) {
+      std::vector<Vec3> trial = s;  // free smoothing may destroy more than it repairs: keep the best
+      const std::size_t left = untangle(mesh, topo, trial, 400, true);
+      if (left < R.untangle_remaining) s = std::move(trial), R.untangle_remaining = left;
+      if (R.untangle_remaining == 0) {
+        // the smoothing damaged the area: repair it with the regularised energy, keep it if flip-free
+        std::vector<Vec3> repaired = s;
+        OptimizeOptions uo;
+        uo.conformal_weight = 0;
+        uo.max_sweeps = 100;
+        uo.activity_threshold = 1e-5;
+        for (double eps : {1e-3, 1e-4, 1e-5}) {
+          uo.regularization = eps;
+          optimize_area(mesh, topo, targets, repaired, uo);
+        }
+        if (count_flips(mesh, repaired) == 0) s = std::move(repaired);
+      }
+    }
+    record("untangle_laplacian", since(t), s, "monotone, then free on growing rings");
+    break;
   }
-  record("untangle_laplacian", since(t), s, "monotone, then free on growing rings");
+#else
+  R.ot.status = "unavailable";
+  R.ot.message = "built without the sphere geometry";
+  record("ot_centroids", since(t), s, "OT " + R.ot.status);
+#endif
 
   // 5. Flip-free area-correcting optimization.
   if (options.optimize && R.untangle_remaining == 0) {

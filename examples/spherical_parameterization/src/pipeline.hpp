@@ -15,10 +15,13 @@ namespace sphparam {
 struct PipelineOptions {
   /// Dirac refinement levels (each level splits every triangle in 4); −1 chooses by size.
   int refine = 0;
+  /// Should flips survive the untangling, OT and untangling rerun with one more refinement
+  /// level, up to this many levels.
+  int max_refine = 1;
   double ot_tolerance = 1e-4;  ///< max relative mass error of the OT solve (the optimizer refines further)
   int ot_max_iterations = 60;
   /// Stretch reweightings of the Tutte map at most (only while regions are crushed).
-  int max_reweightings = 0;
+  int max_reweightings = 40;
   /// Separation passes run while the shortest edge of the map is below this times sqrt(4π/N).
   double min_spacing = 5e-5;
   /// Separation radius of the representatives, times sqrt(4π/N).
