@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <unistd.h>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -354,6 +355,68 @@ TEST(Stages, UntangleRepairsPerturbedMap) {
   EXPECT_EQ(count_flips(m, s), 0u);
 }
 
+namespace {
+/// 0.5% quantile of log(spherical area / target) over the faces: how crushed the worst regions are.
+double crushed_quantile(const Mesh& m, const std::vector<Vec3>& s, const std::vector<double>& targets) {
+  std::vector<double> logs;
+  for (std::size_t f = 0; f < m.faces.size(); ++f) {
+    const auto& t = m.faces[f];
+    const double a = signed_spherical_triangle_area(
+        s[static_cast<std::size_t>(t[0])], s[static_cast<std::size_t>(t[1])], s[static_cast<std::size_t>(t[2])]);
+    logs.push_back(std::log(std::max(a, 1e-300) / targets[f]));
+  }
+  std::sort(logs.begin(), logs.end());
+  return logs[logs.size() / 200];
+}
+}  // namespace
+
+TEST(Stages, StretchReweightingOpensCrushedSpikes) {
+  // Long thin spikes: the harmonic (Tutte) map crushes them exponentially in their length.
+  const Mesh m = test::spiky_sphere(4, 4, 8.0, 0.2);
+  const Topology topo(m);
+  const auto targets = face_targets(m, {});
+  const auto masses = vertex_targets(m, targets);
+  auto plain = tutte_sphere_map(m, topo, targets, 0);
+  mobius_balance(plain, masses);
+  int reweightings = 0;
+  auto reweighted = tutte_sphere_map(m, topo, targets, 40, &reweightings);
+  mobius_balance(reweighted, masses);
+  const double plain_q = crushed_quantile(m, plain, targets), reweighted_q = crushed_quantile(m, reweighted, targets);
+  std::printf("crushed 0.5%% quantile of log stretch: %.2f plain, %.2f after %d reweightings\n", plain_q, reweighted_q,
+              reweightings);
+  EXPECT_LT(plain_q, -6.0);  // the test is only meaningful if the spikes are crushed
+  EXPECT_GT(reweightings, 0);
+  EXPECT_GT(reweighted_q, plain_q + 3.0);
+  EXPECT_EQ(count_flips(m, reweighted), 0u);
+}
+
+TEST(Stages, PatchRepairReembedsFoldedDisk) {
+  const Mesh m = test::icosphere(4);
+  const Topology topo(m);
+  auto s = m.vertices;
+  // Scramble a vertex and its one-ring: the ring's order is reversed through the centre, so no
+  // single-vertex move can repair it (the star kernels are empty).
+  const int centre = 100;
+  std::vector<int> ring;
+  for (int k = topo.nbr_offsets[centre]; k < topo.nbr_offsets[centre + 1]; ++k)
+    ring.push_back(topo.nbrs[static_cast<std::size_t>(k)]);
+  for (int v : ring) {
+    const Vec3& c = m.vertices[centre];
+    const Vec3 d = m.vertices[static_cast<std::size_t>(v)] - c;
+    s[static_cast<std::size_t>(v)] = (c - d).normalized();  // point reflection through the centre
+  }
+  const std::size_t before = count_flips(m, s);
+  ASSERT_GT(before, 0u);
+  const auto damaged = s;
+  EXPECT_EQ(repair_flips_by_patches(m, topo, s), 0u);
+  EXPECT_EQ(count_flips(m, s), 0u);
+  // local: vertices far from the damage keep their positions exactly
+  std::size_t moved_far = 0;
+  for (std::size_t v = 0; v < s.size(); ++v)
+    if (m.vertices[v].dot(m.vertices[centre]) < std::cos(0.8) && s[v] != damaged[v]) ++moved_far;
+  EXPECT_EQ(moved_far, 0u);
+}
+
 TEST(Stages, SubdivideKeepsOriginalVerticesFirst) {
   const Mesh m = test::icosphere(1);
   const Mesh f = subdivide(m);
@@ -385,6 +448,16 @@ TEST(Pipeline, SphereWithLongThinSpikes) {
   const auto r = run(m);
   EXPECT_EQ(r.metrics.flips, 0u);
   EXPECT_LT(r.metrics.area_mean_abs, 0.15);
+}
+
+TEST(Pipeline, SphereWithVeryLongSpikes) {
+  // crushed to e^-9 by the harmonic map (0.5% quantile of the log stretch): needs the reweighting
+  const Mesh m = test::spiky_sphere(4, 4, 16.0, 0.15);
+  ASSERT_TRUE(validate(m).ok());
+  const auto r = run(m);
+  EXPECT_EQ(r.metrics.flips, 0u);
+  EXPECT_LT(r.metrics.area_mean_abs, 0.15);
+  std::printf("very long spikes: area mean|d| %.4f, flips %zu\n", r.metrics.area_mean_abs, r.metrics.flips);
 }
 
 TEST(Pipeline, RandomBumps) {
