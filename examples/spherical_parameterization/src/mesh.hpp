@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -94,6 +95,17 @@ struct Metrics {
 Metrics evaluate_map(const Mesh& mesh, const std::vector<Vec3>& sphere, double orientation_sign);
 
 /// Exact spherical-triangle area (unsigned), Van Oosterom–Strackee.
+/// 2·atan2(num, den): the area of a spherical triangle (a, b, c) from num = det[a, b, c] and
+/// den = 1 + a·b + b·c + c·a (Van Oosterom–Strackee). For the small triangles of fine meshes
+/// (|num| < 0.01·den) a four-term series of atan, exact to rounding (next term < 1.2e-17
+/// relative) and several times cheaper than atan2, which dominated the area optimization.
+inline double triangle_area_from_det(double num, double den) {
+  if (den > 0 && std::abs(num) < 0.01 * den) {
+    const double x = num / den, x2 = x * x;
+    return 2 * x * (1 - x2 * (1.0 / 3 - x2 * (1.0 / 5 - x2 / 7)));
+  }
+  return 2 * std::atan2(num, den);
+}
 double spherical_triangle_area(const Vec3& a, const Vec3& b, const Vec3& c);
 /// Signed version: negative when det[a, b, c] < 0.
 double signed_spherical_triangle_area(const Vec3& a, const Vec3& b, const Vec3& c);

@@ -263,13 +263,13 @@ Validation validate(const Mesh& mesh, const ReadInfo& info) {
 double signed_spherical_triangle_area(const Vec3& a, const Vec3& b, const Vec3& c) {
   const double num = a.dot(b.cross(c));
   const double den = 1 + a.dot(b) + b.dot(c) + c.dot(a);
-  return 2 * std::atan2(num, den);
+  return triangle_area_from_det(num, den);
 }
 
 double spherical_triangle_area(const Vec3& a, const Vec3& b, const Vec3& c) {
   const double num = std::abs(a.dot(b.cross(c)));
   const double den = 1 + a.dot(b) + b.dot(c) + c.dot(a);
-  return 2 * std::atan2(num, den);
+  return triangle_area_from_det(num, den);
 }
 
 Metrics evaluate_map(const Mesh& mesh, const std::vector<Vec3>& sphere, double orientation_sign) {
