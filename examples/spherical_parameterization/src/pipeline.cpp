@@ -333,14 +333,21 @@ PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
     //    Laplacian moves around what is left, then free Laplacian smoothing on growing rings.
     t = Clock::now();
     if (count_flips(mesh, s) > 0) {
+      // In chunks of 10 sweeps, up to 60 per ε: once no face is flipped, the flip-free area
+      // optimization (step 5) takes over, which improves the areas at a lower cost per sweep
+      // (bunny_35k: 1.05 s → 0.18 s here, final area mean|d| 0.0126 → 0.0150).
       OptimizeOptions uo;
       uo.conformal_weight = 0;
-      uo.max_sweeps = 60;
+      uo.max_sweeps = 10;
       uo.activity_threshold = 1e-4;
+      std::size_t flips = count_flips(mesh, s);
       for (double eps : {1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5}) {
         uo.regularization = eps;
-        optimize_area(mesh, topo, targets, s, uo);
-        if (count_flips(mesh, s) == 0) break;
+        for (int chunk = 0; chunk < 6 && flips > 0; ++chunk) {
+          optimize_area(mesh, topo, targets, s, uo);
+          flips = count_flips(mesh, s);
+        }
+        if (flips == 0) break;
       }
       record("untangle_regularized", since(t), s, "regularised area energy, eps 0.1 -> 1e-5");
       t = Clock::now();
