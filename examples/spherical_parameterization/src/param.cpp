@@ -26,6 +26,39 @@ double cot_angle(const Vec3& p, const Vec3& q, const Vec3& r) {  // cot of the a
   return a.dot(b) / std::max(s, 1e-300);
 }
 
+/// The Tutte systems (same pattern for every reweighting): Eigen's LDLᵀ, or CHOLMOD's supernodal
+/// Cholesky from 80,000 unknowns, where it is faster (igea_134k's initial map: 0.61 s against
+/// 1.09 s; bunny_35k with 7 reweightings: 0.76 s against 0.67 s).
+class LaplacianSolver {
+ public:
+  explicit LaplacianSolver(Eigen::Index unknowns) : use_cholmod_(sdot::has_cholmod() && unknowns >= 80000) {}
+  void factorize(const Eigen::SparseMatrix<double>& matrix) {
+#ifdef SDOT_HAVE_CHOLMOD
+    if (use_cholmod_) {
+      sdot::detail::use_single_threaded_blas();
+      if (!analysed_) cholmod_.analyzePattern(matrix), analysed_ = true;
+      cholmod_.factorize(matrix);
+      return;
+    }
+#endif
+    if (!analysed_) ldlt_.analyzePattern(matrix), analysed_ = true;
+    ldlt_.factorize(matrix);
+  }
+  [[nodiscard]] Eigen::VectorXd solve(const Eigen::VectorXd& rhs) const {
+#ifdef SDOT_HAVE_CHOLMOD
+    if (use_cholmod_) return cholmod_.solve(rhs);
+#endif
+    return ldlt_.solve(rhs);
+  }
+
+ private:
+  bool use_cholmod_ = false, analysed_ = false;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
+#ifdef SDOT_HAVE_CHOLMOD
+  sdot::CholmodSolver cholmod_;
+#endif
+};
+
 }  // namespace
 
 Topology::Topology(const Mesh& mesh) {
@@ -110,10 +143,7 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& /*topo*/, c
   for (std::size_t i = 0; i < nv; ++i)
     if (static_cast<int>(i) != b[0] && static_cast<int>(i) != b[1] && static_cast<int>(i) != b[2]) index[i] = n++;
   std::vector<double> sigma(nf, 1.0);  // stretch factors (image area / target) of the last map
-  // sdot's default: LDLᵀ, or CHOLMOD when a timed trial finds it faster (large meshes reweight
-  // many times, each time a new factorization of the same pattern)
-  sdot::AutomaticLinearSolver solver;
-  bool analysed = false;
+  LaplacianSolver solver(n);
   std::vector<Vec3> s(nv);
   int done = 0;
   for (int iteration = 0;; ++iteration) {
@@ -142,7 +172,6 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& /*topo*/, c
       if (index[i] >= 0) trips.emplace_back(index[i], index[i], diag[i]);
     Eigen::SparseMatrix<double> L(n, n);
     L.setFromTriplets(trips.begin(), trips.end());
-    if (!analysed) solver.analyzePattern(L), analysed = true;
     solver.factorize(L);
     Eigen::MatrixXd z(n, 2);
     for (int column = 0; column < 2; ++column) z.col(column) = solver.solve(rhs.col(column));

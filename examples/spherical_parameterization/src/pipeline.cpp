@@ -42,8 +42,11 @@ struct OtOutcome {
 };
 
 /// One OT solve with sdot::Sphere; fills `rec` (status, iterations, errors).
+/// `area_estimate` (optional): cheap estimates of the sites' Voronoi areas; when they show that
+/// no continuation is needed, the Voronoi diagram is not built for it (igea_134k: 0.8 s).
 OtOutcome solve_ot(const std::vector<Vec3>& sites, const std::vector<double>& masses, double tolerance,
-                   int max_iterations, const std::function<void(const std::string&)>& say, OtRecord* rec) {
+                   int max_iterations, const std::function<void(const std::string&)>& say, OtRecord* rec,
+                   const std::vector<double>* area_estimate = nullptr) {
   OtOutcome out;
   Eigen::VectorXd nu(static_cast<Eigen::Index>(masses.size()));
   for (std::size_t i = 0; i < masses.size(); ++i) nu[static_cast<Eigen::Index>(i)] = masses[i];
@@ -65,22 +68,35 @@ OtOutcome solve_ot(const std::vector<Vec3>& sites, const std::vector<double>& ma
     // log(ν/μ0) (at most a factor e per stage): far from ν the damped Newton method otherwise
     // takes tiny steps for many iterations.
     std::optional<Eigen::VectorXd> warm;
-    {
+    // Up to a factor e^6 the damped Newton method goes straight to the targets faster (bunny_35k:
+    // 7 iterations in 2.5 s against 11 in 3.9 s with 3 stages); beyond, stages of at most e^2
+    // save more than their cost (maxplanck_12k, e^8.3: 1.27 s against 1.57 s).
+    const double direct_limit = 6;
+    auto worst_log_ratio = [&](const auto& areas, bool& ok) {
+      double total = 0, worst = 0;
+      for (Eigen::Index i = 0; i < nu.size(); ++i) total += areas[i];
+      const double scale = nu.sum() / total;
+      ok = true;
+      for (Eigen::Index i = 0; i < nu.size(); ++i) {
+        if (!(areas[i] > 0))
+          ok = false;
+        else
+          worst = std::max(worst, std::abs(std::log(nu[i] / (scale * areas[i]))));
+      }
+      return worst;
+    };
+    bool estimate_ok = false;
+    const bool direct = area_estimate && area_estimate->size() == sites.size() &&
+                        worst_log_ratio(*area_estimate, estimate_ok) <= direct_limit && estimate_ok;
+    if (direct) {
+      say("  continuation: not needed (max |log(target / area)| <= " + fmt_g(direct_limit) + " on the map)");
+    } else {
       const Eigen::VectorXd zero = Eigen::VectorXd::Zero(nu.size());
       auto ev = sdot::evaluate(sphere, sdot::UniformDensity{}, span, zero, false);
       const double scale = nu.sum() / ev.masses.sum();
-      double worst = 0;
-      bool ok = true;
-      for (Eigen::Index i = 0; i < nu.size(); ++i) {
-        if (!(ev.masses[i] > 0))
-          ok = false;
-        else
-          worst = std::max(worst, std::abs(std::log(nu[i] / (scale * ev.masses[i]))));
-      }
-      // Up to a factor e^6 the damped Newton method goes straight to the targets faster (bunny_35k:
-      // 7 iterations in 2.5 s against 11 in 3.9 s with 3 stages); beyond, stages of at most e^2
-      // save more than their cost (maxplanck_12k, e^8.3: 1.27 s against 1.57 s).
-      const int stages = ok && worst > 6 ? std::min(4, static_cast<int>(std::ceil(worst / 2.0))) : 1;
+      bool ok = false;
+      const double worst = worst_log_ratio(ev.masses, ok);
+      const int stages = ok && worst > direct_limit ? std::min(4, static_cast<int>(std::ceil(worst / 2.0))) : 1;
       say("  continuation: max |log(target / Voronoi area)| " + fmt_g(worst) + ", " + std::to_string(stages) +
           " stage(s)");
       for (int k = 1; k < stages; ++k) {
@@ -323,7 +339,14 @@ PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
       const auto dirac_masses = vertex_targets(dirac_mesh, dirac_targets);
       R.ot.sites = sites.size();
       say("OT: " + std::to_string(sites.size()) + " Diracs (refinement " + std::to_string(level) + ")");
-      OtOutcome o = solve_ot(sites, dirac_masses, options.ot_tolerance, options.ot_max_iterations, say, &R.ot);
+      // a third of the incident spherical triangle areas: nearly the Voronoi areas of a flip-free map
+      std::vector<double> map_areas(sites.size(), 0.0);
+      for (const auto& f : dirac_mesh.faces) {
+        const double a = spherical_triangle_area(sites[u(f[0])], sites[u(f[1])], sites[u(f[2])]) / 3;
+        for (int v : f) map_areas[u(v)] += a;
+      }
+      OtOutcome o = solve_ot(sites, dirac_masses, options.ot_tolerance, options.ot_max_iterations, say, &R.ot,
+                             count_flips(dirac_mesh, sites) == 0 ? &map_areas : nullptr);
       if (o.usable)
         for (std::size_t i = 0; i < s.size(); ++i) s[i] = o.centroids[i];
     }
