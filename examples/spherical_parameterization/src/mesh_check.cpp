@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
-#include <unordered_map>
 
 #include "mesh.hpp"
 
@@ -125,29 +124,27 @@ Validation validate(const Mesh& mesh, const ReadInfo& info) {
         plural(r.unreferenced, "unreferenced vertex", "unreferenced vertices") +
             " (dropped: the output has only the referenced vertices, in their input order)");
 
-  // Edges: undirected multiplicity and directed multiplicity.
-  std::unordered_map<std::uint64_t, int> undirected, directed;
-  undirected.reserve(3 * nf);
-  directed.reserve(3 * nf);
+  // Edges: undirected multiplicity and directed multiplicity, from sorted half-edges (a sort is
+  // several times faster than hash maps here: igea_134k's validation took 0.2 s with them).
+  std::vector<std::pair<std::uint64_t, bool>> half_edges;  // (undirected key, a > b)
+  half_edges.reserve(3 * nf);
   for (const auto& f : mesh.faces)
     for (int k = 0; k < 3; ++k) {
       const int a = f[static_cast<std::size_t>(k)], b = f[static_cast<std::size_t>((k + 1) % 3)];
       if (a == b) continue;
-      ++undirected[edge_key(std::min(a, b), std::max(a, b))];
-      ++directed[edge_key(a, b)];
+      half_edges.emplace_back(edge_key(std::min(a, b), std::max(a, b)), a > b);
     }
-  r.edges = undirected.size();
+  std::sort(half_edges.begin(), half_edges.end());
   std::size_t boundary = 0, nonmanifold_edges = 0, misoriented = 0;
-  for (const auto& [key, count] : undirected) {
+  r.edges = 0;
+  for (std::size_t begin = 0, end = 0; begin < half_edges.size(); begin = end) {
+    while (end < half_edges.size() && half_edges[end].first == half_edges[begin].first) ++end;
+    ++r.edges;
+    const std::size_t count = end - begin;
     if (count == 1) ++boundary;
     if (count > 2) ++nonmanifold_edges;
-    if (count == 2) {
-      const int a = static_cast<int>(key >> 32), b = static_cast<int>(key & 0xffffffffu);
-      auto ab = directed.find(edge_key(a, b));
-      auto ba = directed.find(edge_key(b, a));
-      const int nab = ab == directed.end() ? 0 : ab->second, nba = ba == directed.end() ? 0 : ba->second;
-      if (nab != 1 || nba != 1) ++misoriented;
-    }
+    // sorted, so a manifold edge traversed once in each direction is (false, true)
+    if (count == 2 && half_edges[begin].second == half_edges[begin + 1].second) ++misoriented;
   }
   if (boundary > 0)
     add("boundary edges", boundary, true,

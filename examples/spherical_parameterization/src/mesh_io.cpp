@@ -3,6 +3,7 @@
 #include <bit>
 #include <cctype>
 #include <cerrno>
+#include <charconv>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -51,25 +52,28 @@ class Tokens {
     if (!next(t)) throw FileError(path_ + ": unexpected end of file while reading " + what);
     return t;
   }
+  // std::from_chars: no allocation per token
   double number(const char* what) {
-    const std::string t(need(what));
-    char* end = nullptr;
-    const double v = std::strtod(t.c_str(), &end);
-    if (end == t.c_str() || *end != '\0')
-      throw FileError(path_ + ": expected a number for " + what + ", got '" + t + "'");
+    const std::string_view t = need(what);
+    double v = 0;
+    if (!parse(t, v)) throw FileError(path_ + ": expected a number for " + what + ", got '" + std::string(t) + "'");
     return v;
   }
   long long integer(const char* what) {
-    const std::string t(need(what));
-    char* end = nullptr;
-    const long long v = std::strtoll(t.c_str(), &end, 10);
-    if (end == t.c_str() || *end != '\0')
-      throw FileError(path_ + ": expected an integer for " + what + ", got '" + t + "'");
+    const std::string_view t = need(what);
+    long long v = 0;
+    if (!parse(t, v)) throw FileError(path_ + ": expected an integer for " + what + ", got '" + std::string(t) + "'");
     return v;
   }
   [[nodiscard]] std::size_t position() const { return pos_; }
 
  private:
+  template <class T>
+  static bool parse(std::string_view t, T& value) {
+    if (!t.empty() && t.front() == '+') t.remove_prefix(1);  // accepted by strtod, not by from_chars
+    const auto [end, error] = std::from_chars(t.data(), t.data() + t.size(), value);
+    return error == std::errc() && end == t.data() + t.size() && !t.empty();
+  }
   const std::string& s_;
   std::size_t pos_;
   std::string path_;
