@@ -7,6 +7,7 @@
 #include <Eigen/SparseLU>
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <numeric>
@@ -508,6 +509,26 @@ LocalEval local_energy(const Mesh& mesh, const Topology& topo, const std::vector
   return e;
 }
 
+/// Greedy colouring of the vertex graph (no two neighbours share a colour), as index lists.
+std::vector<std::vector<int>> colour_classes(const Topology& topo, std::size_t nv) {
+  std::vector<int> colour(nv, -1);
+  std::vector<char> taken;
+  std::vector<std::vector<int>> classes;
+  for (std::size_t v = 0; v < nv; ++v) {
+    taken.assign(classes.size() + 1, 0);
+    for (int k = topo.nbr_offsets[v]; k < topo.nbr_offsets[v + 1]; ++k) {
+      const int c = colour[u(topo.nbrs[u(k)])];
+      if (c >= 0) taken[u(c)] = 1;
+    }
+    int c = 0;
+    while (taken[u(c)]) ++c;
+    colour[v] = c;
+    if (u(c) == classes.size()) classes.emplace_back();
+    classes[u(c)].push_back(static_cast<int>(v));
+  }
+  return classes;
+}
+
 }  // namespace
 
 OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets,
@@ -541,46 +562,53 @@ OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::
   std::vector<double> mu(nv, 1e-3);  // per-vertex Levenberg damping
   // Active set: a vertex is revisited while it or a neighbour moved noticeably.
   std::vector<char> active(nv, 1), next_active(nv, 0);
-  std::vector<double> move(nv, 0.0);
-  // Sequential Gauss–Seidel: measured faster than coloured parallel sweeps on a loaded 2-core machine.
+  // Gauss–Seidel, one colour class at a time: vertices of one colour share no face, so their
+  // moves are independent and run in parallel.
+  const std::vector<std::vector<int>> colours = colour_classes(topo, nv);
   for (int sweep = 0; sweep < options.max_sweeps; ++sweep) {
     std::size_t visited = 0;
     std::fill(next_active.begin(), next_active.end(), 0);
-    for (std::size_t iv = 0; iv < nv; ++iv) {
-      if (!active[iv]) continue;
-      ++visited;
-      const int i = static_cast<int>(iv);
-      const Vec3 x = s[u(i)];
-      const LocalEval e0 =
-          local_energy(mesh, topo, targets, geom, s, i, x, options.conformal_weight, true, options.regularization);
-      if (!e0.valid) continue;
-      const Vec3 t1 = (std::abs(x.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(x).normalized();
-      const Vec3 t2 = x.cross(t1);
-      Eigen::Matrix<double, 3, 2> P;
-      P.col(0) = t1, P.col(1) = t2;
-      const Eigen::Vector2d grad2 = P.transpose() * e0.grad;
-      const Eigen::Matrix2d H = P.transpose() * e0.gn * P;
-      const double scale = H.trace() * 0.5 + 1e-300;
-      double m = mu[u(i)];
-      bool accepted = false;
-      for (int tries = 0; tries < 6; ++tries) {
-        const Eigen::Matrix2d Hd = H + m * scale * Eigen::Matrix2d::Identity();
-        const Eigen::Vector2d d = -Hd.ldlt().solve(grad2);
-        const Vec3 y = (x + P * d).normalized();
-        const LocalEval e1 =
-            local_energy(mesh, topo, targets, geom, s, i, y, options.conformal_weight, false, options.regularization);
-        if (e1.valid && e1.energy < e0.energy) {
-          s[u(i)] = y;
-          accepted = true;
-          if (e0.energy - e1.energy > options.activity_threshold * (e0.energy + 1e-12)) {
-            next_active[iv] = 1;
-            for (int k = topo.nbr_offsets[iv]; k < topo.nbr_offsets[iv + 1]; ++k) next_active[u(topo.nbrs[u(k)])] = 1;
+    for (const auto& colour : colours) {
+      const auto count = static_cast<std::ptrdiff_t>(colour.size());
+#pragma omp parallel for schedule(dynamic, 256) reduction(+ : visited)
+      for (std::ptrdiff_t c = 0; c < count; ++c) {
+        const int i = colour[static_cast<std::size_t>(c)];
+        const auto iv = u(i);
+        if (!active[iv]) continue;
+        ++visited;
+        const Vec3 x = s[iv];
+        const LocalEval e0 =
+            local_energy(mesh, topo, targets, geom, s, i, x, options.conformal_weight, true, options.regularization);
+        if (!e0.valid) continue;
+        const Vec3 t1 = (std::abs(x.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(x).normalized();
+        const Vec3 t2 = x.cross(t1);
+        Eigen::Matrix<double, 3, 2> P;
+        P.col(0) = t1, P.col(1) = t2;
+        const Eigen::Vector2d grad2 = P.transpose() * e0.grad;
+        const Eigen::Matrix2d H = P.transpose() * e0.gn * P;
+        const double scale = H.trace() * 0.5 + 1e-300;
+        double m = mu[iv];
+        bool accepted = false;
+        for (int tries = 0; tries < 6; ++tries) {
+          const Eigen::Matrix2d Hd = H + m * scale * Eigen::Matrix2d::Identity();
+          const Eigen::Vector2d d = -Hd.ldlt().solve(grad2);
+          const Vec3 y = (x + P * d).normalized();
+          const LocalEval e1 =
+              local_energy(mesh, topo, targets, geom, s, i, y, options.conformal_weight, false, options.regularization);
+          if (e1.valid && e1.energy < e0.energy) {
+            s[iv] = y;
+            accepted = true;
+            if (e0.energy - e1.energy > options.activity_threshold * (e0.energy + 1e-12)) {
+              std::atomic_ref<char>(next_active[iv]).store(1, std::memory_order_relaxed);
+              for (int k = topo.nbr_offsets[iv]; k < topo.nbr_offsets[iv + 1]; ++k)
+                std::atomic_ref<char>(next_active[u(topo.nbrs[u(k)])]).store(1, std::memory_order_relaxed);
+            }
+            break;
           }
-          break;
+          m = m * 10 + 1e-2;
         }
-        m = m * 10 + 1e-2;
+        mu[iv] = accepted ? std::max(m * 0.3, 1e-4) : std::min(m, 1e3);
       }
-      mu[u(i)] = accepted ? std::max(m * 0.3, 1e-4) : std::min(m, 1e3);
     }
     active.swap(next_active);
     result.sweeps = sweep + 1;

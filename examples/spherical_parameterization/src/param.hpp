@@ -73,7 +73,8 @@ struct OptimizeResult {
   std::size_t visits = 0;  ///< vertex updates tried
   double energy_start = 0, energy_end = 0;
 };
-/// Flip-free area-correcting optimization on the sphere: Gauss–Seidel over vertices (with an
+/// Flip-free area-correcting optimization on the sphere: Gauss–Seidel over vertices, one colour
+/// class of the vertex graph at a time in parallel (with an
 /// active set) of E = Σ_f log²(A_f/T_f) + λ Σ_f MIPS_f, each move a damped Gauss–Newton step in
 /// the tangent plane that is only accepted if no incident face degenerates or inverts and E
 /// decreases. Requires a flip-free start (faces with det <= 0 are never created, never repaired).
