@@ -563,14 +563,15 @@ OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::
   // Active set: a vertex is revisited while it or a neighbour moved noticeably.
   std::vector<char> active(nv, 1), next_active(nv, 0);
   // Gauss–Seidel, one colour class at a time: vertices of one colour share no face, so their
-  // moves are independent and run in parallel.
+  // moves are independent and run in parallel. Small classes run serially: a parallel region per
+  // class and sweep costs more than it saves there, and much more when the machine is loaded.
   const std::vector<std::vector<int>> colours = colour_classes(topo, nv);
   for (int sweep = 0; sweep < options.max_sweeps; ++sweep) {
     std::size_t visited = 0;
     std::fill(next_active.begin(), next_active.end(), 0);
     for (const auto& colour : colours) {
       const auto count = static_cast<std::ptrdiff_t>(colour.size());
-#pragma omp parallel for schedule(dynamic, 256) reduction(+ : visited)
+#pragma omp parallel for schedule(dynamic, 256) reduction(+ : visited) if (count >= 4096)
       for (std::ptrdiff_t c = 0; c < count; ++c) {
         const int i = colour[static_cast<std::size_t>(c)];
         const auto iv = u(i);
