@@ -463,6 +463,23 @@ void expect_flip_free(const Mesh& m, double max_area_mean_abs) {
   EXPECT_EQ(r.metrics.flips, 0u);
   EXPECT_LT(r.metrics.area_mean_abs, max_area_mean_abs);
   std::printf("area mean|d| %.4f, flips %zu\n", r.metrics.area_mean_abs, r.metrics.flips);
+  // OT reruns with one more Dirac level exactly when flips survive the untangling of the first
+  // attempt (its last untangle_* stage)
+  const auto& stages = r.pipeline.stages;
+  std::size_t first_ot = stages.size(), second_ot = stages.size();
+  for (std::size_t k = 0; k < stages.size(); ++k)
+    if (stages[k].name == "ot_centroids") (first_ot == stages.size() ? first_ot : second_ot) = k;
+  ASSERT_LT(first_ot, stages.size());
+  std::size_t flips_after_first_attempt = 0;
+  for (std::size_t k = first_ot + 1; k < std::min(second_ot, stages.size()); ++k)
+    if (stages[k].name.rfind("untangle_", 0) == 0 && stages[k].name != "untangle_laplacian")
+      flips_after_first_attempt = stages[k].flips;
+  EXPECT_EQ(second_ot<stages.size(), flips_after_first_attempt> 0);
+  if (second_ot < stages.size()) {
+    EXPECT_EQ(r.pipeline.ot.refine, 1);
+  }
+  std::printf("OT attempts: %d, flips after the first: %zu\n", second_ot < stages.size() ? 2 : 1,
+              flips_after_first_attempt);
 }
 }  // namespace
 
