@@ -474,7 +474,8 @@ void expect_flip_free(const Mesh& m, double max_area_mean_abs) {
   for (std::size_t k = first_ot + 1; k < std::min(second_ot, stages.size()); ++k)
     if (stages[k].name.rfind("untangle_", 0) == 0 && stages[k].name != "untangle_laplacian")
       flips_after_first_attempt = stages[k].flips;
-  const bool rerun = second_ot<stages.size(), flips_survived = flips_after_first_attempt> 0;
+  const bool rerun = second_ot < stages.size();
+  const bool flips_survived = flips_after_first_attempt > 0;
   EXPECT_EQ(rerun, flips_survived);
   if (second_ot < stages.size()) {
     EXPECT_EQ(r.pipeline.ot.refine, 1);
