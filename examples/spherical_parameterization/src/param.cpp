@@ -176,14 +176,15 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& /*topo*/, c
     solver.factorize(L);
     Eigen::MatrixXd z(n, 2);
     for (int column = 0; column < 2; ++column) z.col(column) = solver.solve(rhs.col(column));
+    std::vector<Eigen::Vector2d> planar(nv);
     for (std::size_t i = 0; i < nv; ++i) {
-      Eigen::Vector2d p;
       if (index[i] >= 0) {
-        p = z.row(index[i]).transpose();
+        planar[i] = z.row(index[i]).transpose();
       } else {
         for (int c = 0; c < 3; ++c)
-          if (b[c] == static_cast<int>(i)) p = bpos[c];
+          if (b[c] == static_cast<int>(i)) planar[i] = bpos[c];
       }
+      const Eigen::Vector2d& p = planar[i];
       // Inverse stereographic projection from the north pole; the plane is mirrored (y -> -y)
       // so that counter-clockwise planar faces become outward-oriented spherical faces.
       const double x = p.x(), y = -p.y(), r2 = x * x + y * y;
@@ -196,15 +197,6 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& /*topo*/, c
     // valid planar embedding): crushed regions get weaker springs and open up. The stretch is
     // measured in the plane (area × the stereographic factor 4/(1+r²)²): crushed faces are
     // 1e-12 across, accurate there but below the resolution of points on the unit sphere.
-    std::vector<Eigen::Vector2d> planar(nv);
-    for (std::size_t i = 0; i < nv; ++i) {
-      if (index[i] >= 0) {
-        planar[i] = z.row(index[i]).transpose();
-      } else {
-        for (int c = 0; c < 3; ++c)
-          if (b[c] == static_cast<int>(i)) planar[i] = bpos[c];
-      }
-    }
     std::vector<double> logs(nf, 0.0);
     for (std::size_t f = 0; f < nf; ++f) {
       if (f == outer) continue;
