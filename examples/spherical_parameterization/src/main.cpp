@@ -20,9 +20,7 @@ namespace {
 const char* usage =
     "usage: sdot-sphere-param INPUT -o OUTPUT [--report REPORT.json] [--svg HISTOGRAM.svg]\n"
     "                         [--target-weights FILE] [--refine N] [--max-refine N] [--reweightings N]\n"
-    "                         [--no-optimize]"
-    "\n"
-    "                         [--ot-tolerance T] [--sweeps N] [--ply-ascii] [--quiet]\n"
+    "                         [--no-optimize] [--ot-tolerance T] [--sweeps N] [--ply-ascii] [--quiet]\n"
     "\n"
     "Maps a closed genus-0 triangle mesh onto the unit sphere without area distortion and without\n"
     "flipped faces (semi-discrete optimal transport with sdot's sphere geometry).\n"
