@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <memory>
 #include <numeric>
@@ -88,6 +89,34 @@ Adjacency triangles_to_adjacency(const std::vector<std::array<int, 3>>& triangle
   adjacency.offsets[count] = static_cast<int>(write);
   adjacency.neighbors.resize(write);
   return adjacency;
+}
+
+// Orients Qhull's triangles counter-clockwise seen from outside (the origin is inside) and
+// links the opposite half-edges; empty when the triangles do not form a closed 2-manifold.
+HullTriangulation oriented_surface(std::span<const Vec3> points, std::vector<std::array<int, 3>> triangles) {
+  HullTriangulation s;
+  for (auto& t : triangles)
+    if (points[t[0]].dot(points[t[1]].cross(points[t[2]])) < 0) std::swap(t[1], t[2]);
+  std::vector<std::pair<std::uint64_t, int>> half_edges(3 * triangles.size());
+  auto key = [](int a, int b) {
+    return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
+  };
+  for (std::size_t t = 0; t < triangles.size(); ++t)
+    for (int k = 0; k < 3; ++k)
+      half_edges[3 * t + k] = {key(triangles[t][k], triangles[t][(k + 1) % 3]), static_cast<int>(3 * t + k)};
+  std::sort(half_edges.begin(), half_edges.end());
+  std::vector<int> opposite(half_edges.size(), -1);
+  for (std::size_t t = 0; t < triangles.size(); ++t)
+    for (int k = 0; k < 3; ++k) {
+      const std::uint64_t reverse = key(triangles[t][(k + 1) % 3], triangles[t][k]);
+      const auto it = std::lower_bound(half_edges.begin(), half_edges.end(), std::make_pair(reverse, -1));
+      if (it == half_edges.end() || it->first != reverse) return s;                        // not closed
+      if (std::next(it) != half_edges.end() && std::next(it)->first == reverse) return s;  // not manifold
+      opposite[3 * t + k] = it->second;
+    }
+  s.triangles = std::move(triangles);
+  s.opposite = std::move(opposite);
+  return s;
 }
 
 }  // namespace
@@ -530,6 +559,88 @@ Hull3 convex_hull_3d(std::span<const Vec3> points) {
     if (count == 3) triangles.push_back(t);
   });
   hull.edges = triangles_to_adjacency(triangles, points.size());
+  if (hull.max_facet_offset < 0) hull.surface = oriented_surface(points, std::move(triangles));
+  return hull;
+}
+
+std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullTriangulation start) {
+  auto& tri = start.triangles;
+  auto& opp = start.opposite;
+  const std::size_t n = points.size();
+  if (tri.empty() || opp.size() != 3 * tri.size()) return std::nullopt;
+  std::vector<char> used(n, 0);
+  for (const auto& t : tri)
+    for (int v : t) {
+      if (v < 0 || static_cast<std::size_t>(v) >= n) return std::nullopt;
+      used[static_cast<std::size_t>(v)] = 1;
+    }
+  if (std::find(used.begin(), used.end(), 0) != used.end()) return std::nullopt;  // no insertion by flips
+  auto q = [&](int v) -> const Vec3& { return points[static_cast<std::size_t>(v)]; };
+  auto faces_out = [&](int a, int b, int c) { return q(a).dot(q(b).cross(q(c))) > 0; };
+  for (const auto& t : tri)
+    if (!faces_out(t[0], t[1], t[2])) return std::nullopt;
+  // Edge (a, b) of (a, b, c), with d across it, is reflex when d lies above the plane of (a, b, c).
+  // The relative tolerance keeps nearly coplanar pairs (co-circular cells) from flipping back and forth.
+  auto reflex = [&](int h) {
+    const auto t = static_cast<std::size_t>(h / 3);
+    const int k = h % 3;
+    const int o = opp[static_cast<std::size_t>(h)];
+    const int a = tri[t][k], b = tri[t][(k + 1) % 3], c = tri[t][(k + 2) % 3];
+    const int d = tri[static_cast<std::size_t>(o / 3)][(o % 3 + 2) % 3];
+    const Vec3 ab = q(b) - q(a), ac = q(c) - q(a), ad = q(d) - q(a);
+    return ab.cross(ac).dot(ad) > 1e-12 * ab.norm() * ac.norm() * ad.norm();
+  };
+  std::vector<int> stack;
+  stack.reserve(opp.size());
+  for (int h = 0; h < static_cast<int>(opp.size()); ++h)
+    if (h < opp[static_cast<std::size_t>(h)]) stack.push_back(h);
+  std::vector<int> stuck;
+  // flips raise the enclosed volume, so they end; past this many, Qhull is cheaper anyway
+  const std::size_t max_flips = 4 * tri.size() + 1024;
+  std::size_t flips = 0;
+  auto link = [&](int h, int g) { opp[static_cast<std::size_t>(h)] = g, opp[static_cast<std::size_t>(g)] = h; };
+  while (!stack.empty()) {
+    const int h = stack.back();
+    stack.pop_back();
+    if (!reflex(h)) continue;
+    const int t = h / 3, k = h % 3;
+    const int g = opp[static_cast<std::size_t>(h)];
+    const int t2 = g / 3, k2 = g % 3;
+    const auto ut = static_cast<std::size_t>(t), ut2 = static_cast<std::size_t>(t2);
+    const int a = tri[ut][k], b = tri[ut][(k + 1) % 3], c = tri[ut][(k + 2) % 3];
+    const int d = tri[ut2][(k2 + 2) % 3];
+    if (!faces_out(a, d, c) || !faces_out(d, b, c) || c == d) {
+      stuck.push_back(h);  // the quad is not convex seen from the origin: maybe later, else Qhull
+      continue;
+    }
+    if (++flips > max_flips) return std::nullopt;
+    // outer half-edges' partners, read before rewriting: a→d, d→b (in t2), b→c, c→a (in t)
+    const int o_ad = opp[static_cast<std::size_t>(3 * t2 + (k2 + 1) % 3)];
+    const int o_db = opp[static_cast<std::size_t>(3 * t2 + (k2 + 2) % 3)];
+    const int o_bc = opp[static_cast<std::size_t>(3 * t + (k + 1) % 3)];
+    const int o_ca = opp[static_cast<std::size_t>(3 * t + (k + 2) % 3)];
+    tri[ut] = {a, d, c};   // edges a→d, d→c, c→a
+    tri[ut2] = {d, b, c};  // edges d→b, b→c, c→d
+    link(3 * t + 0, o_ad);
+    link(3 * t + 1, 3 * t2 + 2);
+    link(3 * t + 2, o_ca);
+    link(3 * t2 + 0, o_db);
+    link(3 * t2 + 1, o_bc);
+    for (int e : {3 * t + 0, 3 * t + 2, 3 * t2 + 0, 3 * t2 + 1}) stack.push_back(e);
+  }
+  for (std::size_t h = 0; h < opp.size(); ++h)  // the final check: every edge convex
+    if (reflex(static_cast<int>(h))) return std::nullopt;
+  Hull3 hull;
+  hull.is_vertex.assign(n, 1);
+  hull.max_facet_offset = -INFINITY;
+  for (const auto& t : tri) {
+    const Vec3 normal = (q(t[1]) - q(t[0])).cross(q(t[2]) - q(t[0]));
+    const double length = normal.norm();
+    if (!(length > 0)) return std::nullopt;
+    hull.max_facet_offset = std::max(hull.max_facet_offset, -normal.dot(q(t[0])) / length);
+  }
+  hull.edges = triangles_to_adjacency(tri, n);
+  hull.surface = std::move(start);
   return hull;
 }
 

@@ -1,6 +1,9 @@
 // The shared cell builder against brute force (clipping by every other site).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <random>
 
 #include "sdot/chart_diagram.hpp"
@@ -102,3 +105,82 @@ TEST(ChartDiagram, ClipKeepsLabels) {
 
 }  // namespace
 }  // namespace sdot
+
+// ------------------------------------------------------------------ hull updated by flips
+namespace {
+
+/// Points e^{h_i} p_i with p_i on a Fibonacci spiral (evenly spaced, so small heights keep
+/// every point a hull vertex) and h_i uniform in [0, spread].
+std::vector<sdot::Vec3> lifted_sphere_points(std::size_t n, double spread, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> height(0, spread);
+  std::vector<sdot::Vec3> q(n);
+  const double golden = M_PI * (3 - std::sqrt(5.0));
+  for (std::size_t i = 0; i < n; ++i) {
+    const double z = 1 - (2 * static_cast<double>(i) + 1) / static_cast<double>(n), r = std::sqrt(1 - z * z);
+    const double angle = golden * static_cast<double>(i);
+    q[i] = sdot::Vec3(r * std::cos(angle), r * std::sin(angle), z) * std::exp(height(rng));
+  }
+  return q;
+}
+
+std::size_t differing_edges(const sdot::Adjacency& a, const sdot::Adjacency& b, std::size_t n) {
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto x = a.of(i), y = b.of(i);
+    if (!std::equal(x.begin(), x.end(), y.begin(), y.end())) ++differ;
+  }
+  return differ;
+}
+
+}  // namespace
+
+TEST(HullByFlips, ReachesQhullsHullFromANearbyHull) {
+  // Heights small against the squared spacing (4π/n), as in a Newton iterate where every cell is
+  // non-empty: every point is a hull vertex before and after.
+  const std::size_t n = 2000;
+  const auto before = lifted_sphere_points(n, 2e-4, 1);
+  auto after = before;
+  std::mt19937 rng(2);
+  std::uniform_real_distribution<double> change(-2e-4, 2e-4);
+  for (auto& x : after) x *= std::exp(change(rng));  // heights move: the hull's edges change
+  const sdot::Hull3 start = sdot::convex_hull_3d(before);
+  const sdot::Hull3 reference = sdot::convex_hull_3d(after);
+  ASSERT_FALSE(start.surface.triangles.empty());
+  ASSERT_EQ(std::count(start.is_vertex.begin(), start.is_vertex.end(), 1), static_cast<long>(n));
+  ASSERT_EQ(std::count(reference.is_vertex.begin(), reference.is_vertex.end(), 1), static_cast<long>(n));
+  const std::size_t changed = differing_edges(start.edges, reference.edges, n);
+  std::printf("vertices whose hull neighbours changed: %zu of %zu\n", changed, n);
+  ASSERT_GT(changed, n / 20) << "the test needs a start that differs from the answer";
+  const auto flipped = sdot::convex_hull_3d_by_flips(after, start.surface);
+  ASSERT_TRUE(flipped.has_value());
+  EXPECT_EQ(differing_edges(flipped->edges, reference.edges, n), 0u);
+  EXPECT_NEAR(flipped->max_facet_offset, reference.max_facet_offset, 1e-12);
+  EXPECT_EQ(std::count(flipped->is_vertex.begin(), flipped->is_vertex.end(), 1), static_cast<long>(n));
+  // and again from its own result: nothing to flip, the same hull
+  const auto again = sdot::convex_hull_3d_by_flips(after, flipped->surface);
+  ASSERT_TRUE(again.has_value());
+  EXPECT_EQ(differing_edges(again->edges, reference.edges, n), 0u);
+}
+
+TEST(HullByFlips, GivesUpWhereOnlyQhullCanAnswer) {
+  const std::size_t n = 500;
+  const auto points = lifted_sphere_points(n, 2e-4, 3);
+  const sdot::Hull3 start = sdot::convex_hull_3d(points);
+  ASSERT_FALSE(start.surface.triangles.empty());
+  // a point that falls inside the hull: no sequence of flips removes a vertex
+  auto inside = points;
+  inside[7] *= 0.5;
+  EXPECT_FALSE(sdot::convex_hull_3d_by_flips(inside, start.surface).has_value());
+  EXPECT_FALSE(sdot::convex_hull_3d(inside).is_vertex[7]);
+  // a point moved across the sphere: its old triangles face the origin
+  auto moved = points;
+  moved[11] = -moved[11];
+  EXPECT_FALSE(sdot::convex_hull_3d_by_flips(moved, start.surface).has_value());
+  // a start that misses a point (the hull of the others)
+  std::vector<sdot::Vec3> fewer(points.begin(), points.end() - 1);
+  const sdot::Hull3 smaller = sdot::convex_hull_3d(fewer);
+  EXPECT_FALSE(sdot::convex_hull_3d_by_flips(points, smaller.surface).has_value());
+  // no start at all
+  EXPECT_FALSE(sdot::convex_hull_3d_by_flips(points, {}).has_value());
+}

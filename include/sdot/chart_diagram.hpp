@@ -9,6 +9,8 @@
 /// Geometries only have to supply the dual vectors and map the chart polygons to their points.
 
 #include <Eigen/Core>
+#include <array>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -88,14 +90,32 @@ std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const Con
 /// Neighbour candidates of the affine functions' upper envelope in the chart plane.
 Adjacency chart_adjacency(std::span<const Vec3> dual, const ConvexPolygon& domain);
 
+/// A closed triangulated surface around the origin: triangles counter-clockwise seen from
+/// outside, and for each half-edge (triangle t, edge k from corner k to corner k+1) the index
+/// 3t' + k' of the opposite half-edge.
+struct HullTriangulation {
+  std::vector<std::array<int, 3>> triangles;
+  std::vector<int> opposite;
+};
+
 /// The 3-D convex hull of `points` (Qhull, triangulated): vertex adjacency along hull edges,
 /// which points are hull vertices, and the largest facet offset (< 0 iff the origin is strictly
-/// inside the hull). Throws sdot::Error when the hull is degenerate (all points coplanar).
+/// inside the hull). When the origin is strictly inside, `surface` is the triangulation (empty
+/// otherwise). Throws sdot::Error when the hull is degenerate (all points coplanar).
 struct Hull3 {
   Adjacency edges;
   std::vector<char> is_vertex;
   double max_facet_offset = 0;
+  HullTriangulation surface;
 };
 Hull3 convex_hull_3d(std::span<const Vec3> points);
+
+/// The same hull, by Lawson flips from `start`, the hull triangulation of nearby points (the
+/// previous Newton iterate): reflex edges are flipped until every edge is convex. A closed
+/// surface that is star-shaped around the origin and locally convex is convex (Tietze), so the
+/// result is the hull. Empty when that cannot be reached by flips: a triangle of `start` faces
+/// the origin, some point is not a vertex of `start`, or a reflex edge cannot be flipped (a
+/// point has fallen inside the hull). The caller then runs convex_hull_3d.
+std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullTriangulation start);
 
 }  // namespace sdot

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <mutex>
 #include <numbers>
 #include <string>
 
@@ -14,6 +15,15 @@
 #include "sdot/quadrature.hpp"
 
 namespace sdot {
+
+struct Sphere::HullCache {
+  std::mutex mutex;
+  HullTriangulation surface;
+};
+
+std::shared_ptr<Sphere::HullCache> Sphere::make_hull_cache() {
+  return std::make_shared<HullCache>();
+}
 namespace {
 
 constexpr double pi = std::numbers::pi;
@@ -517,10 +527,23 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
     std::vector<Vec3> q(n);
     for (std::size_t i = 0; i < n; ++i) q[i] = std::exp(h[i]) * p[i];
     Hull3 hull;
-    try {
-      hull = convex_hull_3d(q);
-    } catch (const Error&) {
-      return diagram;  // degenerate: all cells empty, so the line search rejects this step
+    HullTriangulation start;
+    {
+      const std::lock_guard lock(hull_cache_->mutex);
+      start = hull_cache_->surface;
+    }
+    if (auto flipped = convex_hull_3d_by_flips(q, std::move(start))) {
+      hull = std::move(*flipped);
+    } else {
+      try {
+        hull = convex_hull_3d(q);
+      } catch (const Error&) {
+        return diagram;  // degenerate: all cells empty, so the line search rejects this step
+      }
+    }
+    {
+      const std::lock_guard lock(hull_cache_->mutex);
+      hull_cache_->surface = hull.surface;
     }
     if (!(hull.max_facet_offset < 0)) return diagram;  // hemisphere condition violated
     const double m = -hull.max_facet_offset;

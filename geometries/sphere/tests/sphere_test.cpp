@@ -452,6 +452,48 @@ TEST(SphereSolver, BuildersAgree) {
   EXPECT_LT((dense_hessian(a) - dense_hessian(b)).cwiseAbs().maxCoeff(), 1e-12);
 }
 
+TEST(SphereSolver, HullBuilderUpdatesItsHullAcrossEvaluations) {
+  // One Sphere object keeps its last hull and updates it by flips for the next heights; where
+  // flips cannot reach the new hull (a cell empties) it runs Qhull again. Every evaluation must
+  // equal the clipping builder's.
+  const auto sites = random_sphere(3000, 41);
+  std::mt19937_64 random(3);
+  std::normal_distribution<double> normal(0, 1e-4);
+  Eigen::VectorXd weights(3000);
+  for (auto& w : weights) w = normal(random);
+  Sphere hull, clipping;
+  hull.set_builder(Sphere::Builder::hull);
+  clipping.set_builder(Sphere::Builder::clipping);
+  auto expect_same = [&](const Eigen::VectorXd& w, const char* what) {
+    SCOPED_TRACE(what);
+    const auto a = evaluate(clipping, UniformDensity{}, std::span(sites), w, true);
+    const auto b = evaluate(hull, UniformDensity{}, std::span(sites), w, true);
+    EXPECT_LT((a.masses - b.masses).cwiseAbs().maxCoeff(), 1e-15);
+    EXPECT_EQ(adjacency(a.diagram), adjacency(b.diagram));
+    EXPECT_LT((dense_hessian(a) - dense_hessian(b)).cwiseAbs().maxCoeff(), 1e-12);
+  };
+  expect_same(weights, "first hull (Qhull)");
+  Eigen::VectorXd moved = weights;
+  for (auto& w : moved) w += normal(random);
+  expect_same(moved, "heights moved (flips)");
+  Eigen::VectorXd emptied = moved;
+  emptied[17] -= 0.05;  // site 17's cell empties: its point falls inside the hull
+  expect_same(emptied, "a cell emptied (Qhull again)");
+  expect_same(moved, "back, from a hull that misses a point (Qhull again)");
+  // a whole solve on one object: every Newton step and trial after the first reuses the hull
+  const Eigen::VectorXd targets = [&] {
+    Eigen::VectorXd t(3000);
+    for (Eigen::Index i = 0; i < 3000; ++i) t[i] = 1 + 0.5 * std::sin(3 * sites[static_cast<std::size_t>(i)].z());
+    return Eigen::VectorXd(t * (4 * std::numbers::pi / t.sum()));
+  }();
+  const auto by_hull = solve(hull, UniformDensity{}, std::span(sites), targets);
+  const auto by_clipping = solve(clipping, UniformDensity{}, std::span(sites), targets);
+  ASSERT_TRUE(by_hull.summary.converged()) << by_hull.summary.message;
+  ASSERT_TRUE(by_clipping.summary.converged()) << by_clipping.summary.message;
+  EXPECT_EQ(by_hull.summary.iterations, by_clipping.summary.iterations);
+  EXPECT_LT((by_hull.weights - by_clipping.weights).cwiseAbs().maxCoeff(), 1e-12);
+}
+
 TEST(SphereSolver, SitesInOneHemisphereOfACap) {
   // A chart builder only needs each domain point within π/2 of some site (math.md §5).
   const Sphere cap = Sphere::cap(Vec::UnitZ(), 0.3);

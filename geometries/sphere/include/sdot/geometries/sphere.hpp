@@ -19,6 +19,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <memory>
 #include <span>
 #include <string_view>
 #include <vector>
@@ -39,7 +40,8 @@ class Sphere {
     automatic,  ///< the default: currently `clipping`
     clipping,   ///< per-cell clipping by the nearest sites, completed and certified with a kd-tree
                 ///< query at each cell vertex (exact for any heights; no Qhull)
-    hull,       ///< Qhull 3-D convex hull of q_i = e^{h_i}p_i, then per-cell clipping by hull neighbours
+    hull,       ///< 3-D convex hull of q_i = e^{h_i}p_i (Qhull, then updated by edge flips from the
+                ///< object's previous hull), then per-cell clipping by hull neighbours
   };
 
   /// The whole sphere.
@@ -112,6 +114,12 @@ class Sphere {
   Diagram<Point> build_whole_sphere(std::span<const Point> sites, const Eigen::VectorXd& weights,
                                     bool stop_at_empty_cell = false) const;
   Diagram<Point> build_in_chart(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
+
+  /// The hull builder's last triangulation, shared by copies: the next diagram (the next Newton
+  /// iterate, heights a little different) starts its flips from it instead of a new Qhull run.
+  struct HullCache;
+  static std::shared_ptr<HullCache> make_hull_cache();
+  std::shared_ptr<HullCache> hull_cache_ = make_hull_cache();
 
   Domain domain_ = Domain::sphere;
   Builder builder_ = Builder::automatic;
