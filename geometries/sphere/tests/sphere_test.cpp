@@ -431,25 +431,39 @@ TEST(SphereSolver, AffineDensityMatchesExactMoments) {
   }
 }
 
-TEST(SphereSolver, BuildersAgree) {
-  // The fast clipping builder against the Qhull hull of e^{h}p (the paper's construction).
-  const auto sites = random_sphere(3000, 31);
-  std::mt19937_64 random(2);
-  std::normal_distribution<double> normal(0, 2e-4);
-  Eigen::VectorXd weights(3000);
-  for (auto& w : weights) w = normal(random);
-  for (int k = 0; k < 3000; k += 300) weights[k] += 0.01;  // a few large cells
-  Sphere hull, clipping;
-  hull.set_builder(Sphere::Builder::hull);
-  clipping.set_builder(Sphere::Builder::clipping);
-  const auto a = evaluate(clipping, UniformDensity{}, std::span(sites), weights, true);
-  const auto b = evaluate(hull, UniformDensity{}, std::span(sites), weights, true);
-  int empty = 0;
-  for (Eigen::Index i = 0; i < 3000; ++i) empty += a.masses[i] == 0;
-  std::printf("  %d empty cells\n", empty);
+namespace {
+/// Heights ~ N(0, sigma²), seeded.
+Eigen::VectorXd random_heights(Eigen::Index n, double sigma, unsigned seed) {
+  std::mt19937_64 random(seed);
+  std::normal_distribution<double> normal(0, sigma);
+  Eigen::VectorXd heights(n);
+  for (auto& h : heights) h = normal(random);
+  return heights;
+}
+
+/// The clipping builder and the hull builder give the same diagram for these heights.
+void expect_builders_agree(const Sphere& clipping, const Sphere& hull, const std::vector<Vec>& sites,
+                           const Eigen::VectorXd& heights) {
+  const auto a = evaluate(clipping, UniformDensity{}, std::span(sites), heights, true);
+  const auto b = evaluate(hull, UniformDensity{}, std::span(sites), heights, true);
   EXPECT_LT((a.masses - b.masses).cwiseAbs().maxCoeff(), 1e-15);
   EXPECT_EQ(adjacency(a.diagram), adjacency(b.diagram));
   EXPECT_LT((dense_hessian(a) - dense_hessian(b)).cwiseAbs().maxCoeff(), 1e-12);
+}
+
+Sphere with_builder(Sphere::Builder builder) {
+  Sphere sphere;
+  sphere.set_builder(builder);
+  return sphere;
+}
+}  // namespace
+
+TEST(SphereSolver, BuildersAgree) {
+  // The fast clipping builder against the Qhull hull of e^{h}p (the paper's construction).
+  const auto sites = random_sphere(3000, 31);
+  Eigen::VectorXd weights = random_heights(3000, 2e-4, 2);
+  for (int k = 0; k < 3000; k += 300) weights[k] += 0.01;  // a few large cells: some empty ones
+  expect_builders_agree(with_builder(Sphere::Builder::clipping), with_builder(Sphere::Builder::hull), sites, weights);
 }
 
 TEST(SphereSolver, HullBuilderUpdatesItsHullAcrossEvaluations) {
@@ -457,35 +471,31 @@ TEST(SphereSolver, HullBuilderUpdatesItsHullAcrossEvaluations) {
   // flips cannot reach the new hull (a cell empties) it runs Qhull again. Every evaluation must
   // equal the clipping builder's.
   const auto sites = random_sphere(3000, 41);
-  std::mt19937_64 random(3);
-  std::normal_distribution<double> normal(0, 1e-4);
-  Eigen::VectorXd weights(3000);
-  for (auto& w : weights) w = normal(random);
-  Sphere hull, clipping;
-  hull.set_builder(Sphere::Builder::hull);
-  clipping.set_builder(Sphere::Builder::clipping);
-  auto expect_same = [&](const Eigen::VectorXd& w, const char* what) {
-    SCOPED_TRACE(what);
-    const auto a = evaluate(clipping, UniformDensity{}, std::span(sites), w, true);
-    const auto b = evaluate(hull, UniformDensity{}, std::span(sites), w, true);
-    EXPECT_LT((a.masses - b.masses).cwiseAbs().maxCoeff(), 1e-15);
-    EXPECT_EQ(adjacency(a.diagram), adjacency(b.diagram));
-    EXPECT_LT((dense_hessian(a) - dense_hessian(b)).cwiseAbs().maxCoeff(), 1e-12);
-  };
-  expect_same(weights, "first hull (Qhull)");
-  Eigen::VectorXd moved = weights;
-  for (auto& w : moved) w += normal(random);
-  expect_same(moved, "heights moved (flips)");
+  const Sphere hull = with_builder(Sphere::Builder::hull), clipping = with_builder(Sphere::Builder::clipping);
+  const Eigen::VectorXd weights = random_heights(3000, 1e-4, 3);
+  {
+    SCOPED_TRACE("first hull (Qhull)");
+    expect_builders_agree(clipping, hull, sites, weights);
+  }
+  const Eigen::VectorXd moved = weights + random_heights(3000, 1e-4, 4);
+  {
+    SCOPED_TRACE("heights moved (flips)");
+    expect_builders_agree(clipping, hull, sites, moved);
+  }
   Eigen::VectorXd emptied = moved;
   emptied[17] -= 0.05;  // site 17's cell empties: its point falls inside the hull
-  expect_same(emptied, "a cell emptied (Qhull again)");
-  expect_same(moved, "back, from a hull that misses a point (Qhull again)");
+  {
+    SCOPED_TRACE("a cell emptied (Qhull again)");
+    expect_builders_agree(clipping, hull, sites, emptied);
+  }
+  {
+    SCOPED_TRACE("back, from a hull that misses a point (Qhull again)");
+    expect_builders_agree(clipping, hull, sites, moved);
+  }
   // a whole solve on one object: every Newton step and trial after the first reuses the hull
-  const Eigen::VectorXd targets = [&] {
-    Eigen::VectorXd t(3000);
-    for (Eigen::Index i = 0; i < 3000; ++i) t[i] = 1 + 0.5 * std::sin(3 * sites[static_cast<std::size_t>(i)].z());
-    return Eigen::VectorXd(t * (4 * std::numbers::pi / t.sum()));
-  }();
+  Eigen::VectorXd targets(3000);
+  for (Eigen::Index i = 0; i < 3000; ++i) targets[i] = 1 + 0.5 * std::sin(3 * sites[static_cast<std::size_t>(i)].z());
+  targets *= 4 * std::numbers::pi / targets.sum();
   const auto by_hull = solve(hull, UniformDensity{}, std::span(sites), targets);
   const auto by_clipping = solve(clipping, UniformDensity{}, std::span(sites), targets);
   ASSERT_TRUE(by_hull.summary.converged()) << by_hull.summary.message;
@@ -505,7 +515,6 @@ TEST(SphereSolver, SitesInOneHemisphereOfACap) {
 }
 
 // ---- bad input -------------------------------------------------------------------------
-
 
 TEST(SphereBadInput, ZeroVector) {
   auto sites = random_sphere(10, 1);
