@@ -594,7 +594,6 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
   stack.reserve(opp.size());
   for (int h = 0; h < static_cast<int>(opp.size()); ++h)
     if (h < opp[static_cast<std::size_t>(h)]) stack.push_back(h);
-  std::vector<int> stuck;
   // flips raise the enclosed volume, so they end; past this many, Qhull is cheaper anyway
   const std::size_t max_flips = 4 * tri.size() + 1024;
   std::size_t flips = 0;
@@ -610,7 +609,7 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
     const int a = tri[ut][k], b = tri[ut][(k + 1) % 3], c = tri[ut][(k + 2) % 3];
     const int d = tri[ut2][(k2 + 2) % 3];
     if (!faces_out(a, d, c) || !faces_out(d, b, c) || c == d) {
-      stuck.push_back(h);  // the quad is not convex seen from the origin: maybe later, else Qhull
+      // the quad is not convex seen from the origin: other flips may fix it, else the final check fails
       continue;
     }
     if (++flips > max_flips) return std::nullopt;
