@@ -539,7 +539,7 @@ std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const Con
   return build_power_diagram(centers, power_weight, domain, anchors, stop_at_empty_cell);
 }
 
-Hull3 convex_hull_3d(std::span<const Vec3> points) {
+Hull3 convex_hull_3d(std::span<const Vec3> points, bool with_surface) {
   Hull3 hull;
   hull.is_vertex.assign(points.size(), 0);
   hull.max_facet_offset = -INFINITY;
@@ -559,7 +559,7 @@ Hull3 convex_hull_3d(std::span<const Vec3> points) {
     if (count == 3) triangles.push_back(t);
   });
   hull.edges = triangles_to_adjacency(triangles, points.size());
-  if (hull.max_facet_offset < 0) hull.surface = oriented_surface(points, std::move(triangles));
+  if (with_surface && hull.max_facet_offset < 0) hull.surface = oriented_surface(points, std::move(triangles));
   return hull;
 }
 

@@ -144,7 +144,7 @@ TEST(HullByFlips, ReachesQhullsHullFromANearbyHull) {
   std::mt19937 rng(2);
   std::uniform_real_distribution<double> change(-2e-4, 2e-4);
   for (auto& x : after) x *= std::exp(change(rng));  // heights move: the hull's edges change
-  const sdot::Hull3 start = sdot::convex_hull_3d(before);
+  const sdot::Hull3 start = sdot::convex_hull_3d(before, true);
   const sdot::Hull3 reference = sdot::convex_hull_3d(after);
   ASSERT_FALSE(start.surface.triangles.empty());
   ASSERT_EQ(std::count(start.is_vertex.begin(), start.is_vertex.end(), 1), static_cast<long>(n));
@@ -166,7 +166,7 @@ TEST(HullByFlips, ReachesQhullsHullFromANearbyHull) {
 TEST(HullByFlips, GivesUpWhereOnlyQhullCanAnswer) {
   const std::size_t n = 500;
   const auto points = lifted_sphere_points(n, 2e-4, 3);
-  const sdot::Hull3 start = sdot::convex_hull_3d(points);
+  const sdot::Hull3 start = sdot::convex_hull_3d(points, true);
   ASSERT_FALSE(start.surface.triangles.empty());
   // a point that falls inside the hull: no sequence of flips removes a vertex
   auto inside = points;
@@ -179,7 +179,7 @@ TEST(HullByFlips, GivesUpWhereOnlyQhullCanAnswer) {
   EXPECT_FALSE(sdot::convex_hull_3d_by_flips(moved, start.surface).has_value());
   // a start that misses a point (the hull of the others)
   std::vector<sdot::Vec3> fewer(points.begin(), points.end() - 1);
-  const sdot::Hull3 smaller = sdot::convex_hull_3d(fewer);
+  const sdot::Hull3 smaller = sdot::convex_hull_3d(fewer, true);
   EXPECT_FALSE(sdot::convex_hull_3d_by_flips(points, smaller.surface).has_value());
   // no start at all
   EXPECT_FALSE(sdot::convex_hull_3d_by_flips(points, {}).has_value());

@@ -100,15 +100,16 @@ struct HullTriangulation {
 
 /// The 3-D convex hull of `points` (Qhull, triangulated): vertex adjacency along hull edges,
 /// which points are hull vertices, and the largest facet offset (< 0 iff the origin is strictly
-/// inside the hull). When the origin is strictly inside, `surface` is the triangulation (empty
-/// otherwise). Throws sdot::Error when the hull is degenerate (all points coplanar).
+/// inside the hull). With `with_surface`, and when the origin is strictly inside, `surface` is
+/// the triangulation (empty otherwise). Throws sdot::Error when the hull is degenerate (all
+/// points coplanar).
 struct Hull3 {
   Adjacency edges;
   std::vector<char> is_vertex;
   double max_facet_offset = 0;
   HullTriangulation surface;
 };
-Hull3 convex_hull_3d(std::span<const Vec3> points);
+Hull3 convex_hull_3d(std::span<const Vec3> points, bool with_surface = false);
 
 /// The same hull, by Lawson flips from `start`, the hull triangulation of nearby points (the
 /// previous Newton iterate): reflex edges are flipped until every edge is convex. A closed

@@ -527,23 +527,23 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
     std::vector<Vec3> q(n);
     for (std::size_t i = 0; i < n; ++i) q[i] = std::exp(h[i]) * p[i];
     Hull3 hull;
-    HullTriangulation start;
+    HullTriangulation start;  // taken, not copied: a concurrent build then finds none and runs Qhull
     {
       const std::lock_guard lock(hull_cache_->mutex);
-      start = hull_cache_->surface;
+      start = std::move(hull_cache_->surface);
     }
     if (auto flipped = convex_hull_3d_by_flips(q, std::move(start))) {
       hull = std::move(*flipped);
     } else {
       try {
-        hull = convex_hull_3d(q);
+        hull = convex_hull_3d(q, true);
       } catch (const Error&) {
         return diagram;  // degenerate: all cells empty, so the line search rejects this step
       }
     }
     {
       const std::lock_guard lock(hull_cache_->mutex);
-      hull_cache_->surface = hull.surface;
+      hull_cache_->surface = std::move(hull.surface);
     }
     if (!(hull.max_facet_offset < 0)) return diagram;  // hemisphere condition violated
     const double m = -hull.max_facet_offset;
