@@ -15,7 +15,8 @@ endfunction()
 # sdot_add_geometry(NAME) — called once per geometry folder from geometries/CMakeLists.txt.
 # The folder geometries/NAME provides:
 #   include/sdot/geometries/NAME.hpp    public header (installed)
-#   src/*.cpp                           library sources (added to sdot::sdot)
+#   src/*.cpp                           library sources (added to sdot::sdot); src/*.hpp are
+#                                       private headers, visible to the geometry's tests
 #   cli/*.cpp                           the sdot command's adapter, defining
 #                                       `void sdot::cli::register_NAME(Registry&)`
 #   tests/*_test.cpp                    GoogleTest files, each its own test executable
@@ -36,6 +37,7 @@ function(sdot_add_geometry name)
     foreach(test_source ${tests})
       get_filename_component(test_name ${test_source} NAME_WE)
       sdot_add_test(${test_name} ${test_source})
+      target_include_directories(${test_name} PRIVATE ${dir}/src)  # the geometry's private headers
     endforeach()
   endif()
   if(EXISTS ${dir}/CMakeLists.txt)

@@ -1,8 +1,5 @@
-// Boost.Geometry without its integer rescaling in set operations (the default from Boost 1.77
-// on): with it, computed intersection points are only accurate to about 1e-7 relative.
-#define BOOST_GEOMETRY_NO_ROBUSTNESS
-// Boost 1.74's Boost.Geometry includes a header it deprecated itself (a #pragma message).
-#define BOOST_ALLOW_DEPRECATED_HEADERS
+// PlaneRegion: validation and union of polygons with holes, and their convex decomposition.
+#include "boost_geometry.hpp"  // first: it configures Boost.Geometry
 
 #include "sdot/geometries/plane_region.hpp"
 
@@ -14,25 +11,13 @@
 #include <sstream>
 #include <tuple>
 
-#pragma GCC diagnostic push  // false positives inside Boost.Geometry at -O2
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#include <boost/geometry.hpp>
-#include <boost/geometry/geometries/point_xy.hpp>
-#include <boost/geometry/geometries/polygon.hpp>
-#include <boost/geometry/index/rtree.hpp>
-#pragma GCC diagnostic pop
-
 #include "sdot/error.hpp"
 
 namespace sdot {
 namespace {
 
-namespace bg = boost::geometry;
+using namespace plane_geometry;
 using Vec2 = Eigen::Vector2d;
-using BPoint = bg::model::d2::point_xy<double>;
-using BRing = bg::model::ring<BPoint, false, false>;        // counter-clockwise, open
-using BPolygon = bg::model::polygon<BPoint, false, false>;  // outer ccw, holes cw, open
-using BMulti = bg::model::multi_polygon<BPolygon>;
 
 // ---------------------------------------------------------------------------------------------
 // Exact orientation predicate: the sign of (b − a) × (c − a), computed exactly when the

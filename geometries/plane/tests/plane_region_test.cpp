@@ -1,9 +1,6 @@
 // PlaneRegion: validation, union, area/centroid/containment and the convex (trapezoidal)
 // decomposition of non-convex plane domains with holes.
-// Boost.Geometry configured as in the library (plane_region.cpp).
-#define BOOST_GEOMETRY_NO_ROBUSTNESS
-// Boost 1.74's Boost.Geometry includes a header it deprecated itself (a #pragma message).
-#define BOOST_ALLOW_DEPRECATED_HEADERS
+#include "boost_geometry.hpp"  // first: Boost.Geometry configured as in the library
 
 #include "sdot/geometries/plane_region.hpp"
 
@@ -16,24 +13,14 @@
 #include <numbers>
 #include <random>
 
-#pragma GCC diagnostic push  // false positives inside Boost.Geometry at -O2
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#include <boost/geometry.hpp>
-#include <boost/geometry/geometries/point_xy.hpp>
-#include <boost/geometry/geometries/polygon.hpp>
-#pragma GCC diagnostic pop
-
 #include "sdot/error.hpp"
 
 namespace sdot {
 namespace {
 
-namespace bg = boost::geometry;
+using namespace plane_geometry;
 using Vec2 = Eigen::Vector2d;
 using Ring = std::vector<Vec2>;
-using BPoint = bg::model::d2::point_xy<double>;
-using BPolygon = bg::model::polygon<BPoint, false, false>;
-using BMulti = bg::model::multi_polygon<BPolygon>;
 
 Ring rectangle(double x0, double y0, double x1, double y1) {
   return {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
