@@ -108,24 +108,23 @@ TYPED_TEST_P(PiecewiseConformance, LinearMeshHessianMatchesFiniteDifferences) {
   const auto density =
       mesh_density(this->geometry, std::span(mesh.vertices), std::span(mesh.triangles), std::span(values));
   const auto sites = T::random_sites(25, this->random);
-  const Eigen::VectorXd weights =
-      solved_weights(this->geometry, density, std::span(sites), this->varying_masses(25, 4));
-  const double error = hessian_fd_error(this->geometry, density, std::span(sites), weights);
-  std::printf("  piecewise-linear mesh density: Hessian vs finite differences, relative error %.2e\n", error);
-  EXPECT_LT(error, 1e-6);
+  // at solved weights for varying masses: the Hessian's error against finite differences
+  auto expect_hessian_matches = [&](const auto& d, const char* kind) {
+    const Eigen::VectorXd weights = solved_weights(this->geometry, d, std::span(sites), this->varying_masses(25, 4));
+    const double error = hessian_fd_error(this->geometry, d, std::span(sites), weights);
+    std::printf("  %s mesh density: Hessian vs finite differences, relative error %.2e\n", kind, error);
+    EXPECT_LT(error, 1e-6) << kind;
+  };
+  expect_hessian_matches(density, "piecewise-linear");
   const auto constant_values = [&] {
     std::vector<double> v;
     for (const auto& t : mesh.triangles)
       v.push_back(TestFixture::smooth(mesh.vertices[static_cast<std::size_t>(t[0])]));
     return v;
   }();
-  const auto per_triangle = mesh_density_per_triangle(this->geometry, std::span(mesh.vertices),
-                                                      std::span(mesh.triangles), std::span(constant_values));
-  const Eigen::VectorXd weights2 =
-      solved_weights(this->geometry, per_triangle, std::span(sites), this->varying_masses(25, 4));
-  const double error2 = hessian_fd_error(this->geometry, per_triangle, std::span(sites), weights2);
-  std::printf("  piecewise-constant mesh density: Hessian vs finite differences, relative error %.2e\n", error2);
-  EXPECT_LT(error2, 1e-6);
+  expect_hessian_matches(mesh_density_per_triangle(this->geometry, std::span(mesh.vertices), std::span(mesh.triangles),
+                                                   std::span(constant_values)),
+                         "piecewise-constant");
 }
 
 TYPED_TEST_P(PiecewiseConformance, LinearMeshConvergesAndConservesMass) {
