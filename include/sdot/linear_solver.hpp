@@ -79,7 +79,8 @@ inline void use_single_threaded_blas() {
 /// 2.0–2.3 s per solve, on the plane 1.44 s against 1.29 s; see docs/benchmarks.md).
 /// The choice depends on timing: two runs of the same large problem may use different solvers
 /// and differ in the last bits. Choose `ldlt` or `cholmod` explicitly for bitwise-reproducible
-/// results.
+/// results. Every new pattern gets its own ordering: one ordering (AMD or METIS) kept across
+/// Newton iterations multiplied the fill by up to 6 at the next pattern (docs/benchmarks.md).
 class AutomaticLinearSolver {
  public:
   static constexpr Eigen::Index trial_size = 20000;
