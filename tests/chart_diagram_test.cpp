@@ -163,24 +163,80 @@ TEST(HullByFlips, ReachesQhullsHullFromANearbyHull) {
   EXPECT_EQ(differing_edges(again->edges, reference.edges, n), 0u);
 }
 
+TEST(HullByFlips, RemovesPointsThatFallInsideAndInsertsThoseThatComeOut) {
+  // Heights far larger than the squared spacing (4π/n ≈ 6e-3), as in a damped Newton trial step:
+  // many points are inside the hull, and which ones changes between the two hulls.
+  const std::size_t n = 2000;
+  const auto before = lifted_sphere_points(n, 0.03, 4);
+  const auto after = lifted_sphere_points(n, 0.03, 5);
+  const sdot::Hull3 start = sdot::convex_hull_3d(before, true);
+  const sdot::Hull3 reference = sdot::convex_hull_3d(after);
+  ASSERT_FALSE(start.surface.triangles.empty());
+  std::size_t leave = 0, enter = 0, inside = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    leave += start.is_vertex[i] && !reference.is_vertex[i];
+    enter += !start.is_vertex[i] && reference.is_vertex[i];
+    inside += !reference.is_vertex[i];
+  }
+  std::printf("points leaving the hull: %zu, entering: %zu, inside after: %zu of %zu\n", leave, enter, inside, n);
+  ASSERT_GT(leave, n / 20) << "the test needs vertices that must be removed";
+  ASSERT_GT(enter, n / 20) << "the test needs points that must be inserted";
+  const auto flipped = sdot::convex_hull_3d_by_flips(after, start.surface);
+  ASSERT_TRUE(flipped.has_value());
+  EXPECT_EQ(flipped->is_vertex, reference.is_vertex);
+  EXPECT_EQ(differing_edges(flipped->edges, reference.edges, n), 0u);
+  EXPECT_NEAR(flipped->max_facet_offset, reference.max_facet_offset, 1e-12);
+  // back to the first hull from the second one's surface
+  const auto back = sdot::convex_hull_3d_by_flips(before, flipped->surface);
+  ASSERT_TRUE(back.has_value());
+  EXPECT_EQ(back->is_vertex, start.is_vertex);
+  EXPECT_EQ(differing_edges(back->edges, start.edges, n), 0u);
+  // one point pushed deep inside, and a start that misses a point (the hull of the others)
+  auto pushed = after;
+  const auto vertex = static_cast<std::size_t>(std::find(reference.is_vertex.begin(), reference.is_vertex.end(), 1) -
+                                               reference.is_vertex.begin());
+  pushed[vertex] *= 0.5;
+  const auto without = sdot::convex_hull_3d_by_flips(pushed, flipped->surface);
+  ASSERT_TRUE(without.has_value());
+  EXPECT_FALSE(without->is_vertex[vertex]);
+  EXPECT_EQ(without->is_vertex, sdot::convex_hull_3d(pushed).is_vertex);
+  std::vector<sdot::Vec3> fewer(after.begin(), after.end() - 1);
+  const auto grown = sdot::convex_hull_3d_by_flips(after, sdot::convex_hull_3d(fewer, true).surface);
+  ASSERT_TRUE(grown.has_value());
+  EXPECT_EQ(grown->is_vertex, reference.is_vertex);
+  EXPECT_EQ(differing_edges(grown->edges, reference.edges, n), 0u);
+}
+
 TEST(HullByFlips, GivesUpWhereOnlyQhullCanAnswer) {
   const std::size_t n = 500;
   const auto points = lifted_sphere_points(n, 2e-4, 3);
   const sdot::Hull3 start = sdot::convex_hull_3d(points, true);
   ASSERT_FALSE(start.surface.triangles.empty());
-  // a point that falls inside the hull: no sequence of flips removes a vertex
-  auto inside = points;
-  inside[7] *= 0.5;
-  EXPECT_FALSE(sdot::convex_hull_3d_by_flips(inside, start.surface).has_value());
-  EXPECT_FALSE(sdot::convex_hull_3d(inside).is_vertex[7]);
   // a point moved across the sphere: its old triangles face the origin
   auto moved = points;
   moved[11] = -moved[11];
   EXPECT_FALSE(sdot::convex_hull_3d_by_flips(moved, start.surface).has_value());
-  // a start that misses a point (the hull of the others)
+  // a start that names a point that does not exist
   std::vector<sdot::Vec3> fewer(points.begin(), points.end() - 1);
-  const sdot::Hull3 smaller = sdot::convex_hull_3d(fewer, true);
-  EXPECT_FALSE(sdot::convex_hull_3d_by_flips(points, smaller.surface).has_value());
-  // no start at all
-  EXPECT_FALSE(sdot::convex_hull_3d_by_flips(points, {}).has_value());
+  EXPECT_FALSE(sdot::convex_hull_3d_by_flips(fewer, start.surface).has_value());
+  // no tetrahedron of the points holds the origin: all on one side of a plane
+  std::vector<sdot::Vec3> cap;
+  for (const auto& x : points)
+    if (x.z() > 0.1) cap.push_back(x);
+  EXPECT_FALSE(sdot::convex_hull_3d_by_flips(cap, {}).has_value());
+}
+
+TEST(HullByFlips, BuildsTheHullFromScratchByInsertion) {
+  // No start: a tetrahedron, then every point inserted where it lies above the surface.
+  for (const double spread : {0.0, 2e-4, 0.03}) {
+    const std::size_t n = 5000;
+    auto points = lifted_sphere_points(n, spread, 6);
+    std::shuffle(points.begin(), points.end(), std::mt19937(7));  // no spatial order to help the walks
+    const sdot::Hull3 reference = sdot::convex_hull_3d(points);
+    const auto built = sdot::convex_hull_3d_by_flips(points, {});
+    ASSERT_TRUE(built.has_value()) << "spread " << spread;
+    EXPECT_EQ(built->is_vertex, reference.is_vertex) << "spread " << spread;
+    EXPECT_EQ(differing_edges(built->edges, reference.edges, n), 0u) << "spread " << spread;
+    EXPECT_NEAR(built->max_facet_offset, reference.max_facet_offset, 1e-12);
+  }
 }

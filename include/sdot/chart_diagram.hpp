@@ -111,12 +111,15 @@ struct Hull3 {
 };
 Hull3 convex_hull_3d(std::span<const Vec3> points, bool with_surface = false);
 
-/// The same hull, by Lawson flips from `start`, the hull triangulation of nearby points (the
-/// previous Newton iterate): reflex edges are flipped until every edge is convex. A closed
-/// surface that is star-shaped around the origin and locally convex is convex (Tietze), so the
-/// result is the hull. Empty when that cannot be reached by flips: a triangle of `start` faces
-/// the origin, some point is not a vertex of `start`, or a reflex edge cannot be flipped (a
-/// point has fallen inside the hull). The caller then runs convex_hull_3d.
+/// The same hull, grown from `start`, the hull triangulation of nearby points (the previous
+/// Newton iterate), or from a tetrahedron of the points when `start` is empty: reflex edges are
+/// flipped, a vertex that has fallen inside leaves by a 3-1 flip once its degree is 3, and the
+/// points missing from `start` are inserted (1-3 split, in Morton order) where they lie above the
+/// surface. Every step adds volume, so a point found inside stays inside; a closed surface that is
+/// star-shaped around the origin and locally convex is convex (Tietze), so the result is the hull.
+/// Empty when that is not reached: a triangle of `start` faces the origin or names a point that
+/// does not exist, no tetrahedron holds the origin, a reflex edge stays stuck, or a walk or the
+/// flips run too long. The caller then runs convex_hull_3d.
 std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullTriangulation start);
 
 }  // namespace sdot

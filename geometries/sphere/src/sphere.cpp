@@ -522,7 +522,7 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
   };
 
   const double spacing = std::sqrt(4 * pi / static_cast<double>(n));
-  const bool use_hull = builder_ == Builder::hull;
+  const bool use_hull = builder_ != Builder::clipping;
   if (use_hull) {
     std::vector<Vec3> q(n);
     for (std::size_t i = 0; i < n; ++i) q[i] = std::exp(h[i]) * p[i];

@@ -37,11 +37,12 @@ class Sphere {
   enum class Domain { sphere, cap, polygon };
   /// How the whole-sphere diagram is built (both give the same cells up to rounding).
   enum class Builder {
-    automatic,  ///< the default: currently `clipping`
+    automatic,  ///< the default: currently `hull`
     clipping,   ///< per-cell clipping by the nearest sites, completed and certified with a kd-tree
                 ///< query at each cell vertex (exact for any heights; no Qhull)
-    hull,       ///< 3-D convex hull of q_i = e^{h_i}p_i (Qhull, then updated by edge flips from the
-                ///< object's previous hull), then per-cell clipping by hull neighbours
+    hull,       ///< 3-D convex hull of q_i = e^{h_i}p_i (grown by insertion and flips, then updated
+                ///< from the object's previous hull; Qhull when that fails), then per-cell clipping by
+                ///< hull neighbours
   };
 
   /// The whole sphere.
