@@ -40,7 +40,7 @@ const char* usage =
     "  --separation-threshold X  run site-separation passes while the shortest edge of the map\n"
     "                         is below X*sqrt(4pi/N) (default 5e-5; 0 disables them)\n"
     "  --separation-delta D   separation radius of their representatives, times sqrt(4pi/N) (default 0.1)\n"
-    "  --ot-tolerance T       max relative mass error of the OT solve (default 1e-4)\n"
+    "  --ot-tolerance T       max relative mass error of the OT solve (default 0.05)\n"
     "  --sweeps N             sweeps of the area optimization at most (default 200)\n"
     "  --ply-ascii            write PLY as ascii (default binary little-endian)\n"
     "  --quiet                no progress output\n";

@@ -18,7 +18,10 @@ struct PipelineOptions {
   /// Should flips survive the untangling, OT and untangling rerun with one more refinement
   /// level, up to this many levels.
   int max_refine = 1;
-  double ot_tolerance = 1e-4;  ///< max relative mass error of the OT solve (the optimizer refines further)
+  /// Max relative mass error of the OT solve. The map's per-face area error after OT is a sampling
+  /// error of about one cell (area mean|d| 0.08–0.12), which tighter masses do not reduce: on the
+  /// 16 shared meshes 1e-4 took one more Newton iteration and left every final figure unchanged.
+  double ot_tolerance = 0.05;
   int ot_max_iterations = 60;
   /// Stretch reweightings of the Tutte map at most (only while regions are crushed).
   int max_reweightings = 40;

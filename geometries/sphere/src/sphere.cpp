@@ -546,6 +546,9 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
       hull_cache_->surface = std::move(hull.surface);
     }
     if (!(hull.max_facet_offset < 0)) return diagram;  // hemisphere condition violated
+    // A point inside the hull is an empty cell: a caller that rejects those needs no cells at all.
+    if (stop_at_empty_cell && std::find(hull.is_vertex.begin(), hull.is_vertex.end(), 0) != hull.is_vertex.end())
+      return diagram;
     const double m = -hull.max_facet_offset;
     const auto count = static_cast<std::ptrdiff_t>(n);
 #pragma omp parallel for schedule(dynamic, 256)
