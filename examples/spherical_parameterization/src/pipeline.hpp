@@ -20,7 +20,8 @@ struct PipelineOptions {
   int max_refine = 1;
   /// Max relative mass error of the OT solve. The map's per-face area error after OT is a sampling
   /// error of about one cell (area mean|d| 0.08–0.12), which tighter masses do not reduce: on the
-  /// 16 shared meshes 1e-4 took one more Newton iteration and left every final figure unchanged.
+  /// 16 shared meshes 1e-4 took 1–2 more Newton iterations and left the final figures of 13 meshes
+  /// unchanged in every printed digit (arm, cow_igl, lion_50k: area mean|d| within 0.6 %).
   double ot_tolerance = 0.05;
   int ot_max_iterations = 60;
   /// Stretch reweightings of the Tutte map at most (only while regions are crushed).
