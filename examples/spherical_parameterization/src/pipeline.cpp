@@ -76,12 +76,15 @@ OtOutcome solve_ot(const std::vector<Vec3>& sites, const std::vector<double>& ma
     // 7 iterations in 2.5 s against 11 in 3.9 s with 3 stages); beyond, stages of at most e^2
     // save more than their cost (maxplanck_12k, e^8.3: 1.27 s against 1.57 s).
     const double direct_limit = 6;
+    // NaN areas (unknown) are left out
     auto worst_log_ratio = [&](const auto& areas, bool& ok) {
-      double total = 0, worst = 0;
-      for (Eigen::Index i = 0; i < nu.size(); ++i) total += areas[i];
-      const double scale = nu.sum() / total;
+      double total = 0, known_targets = 0, worst = 0;
+      for (Eigen::Index i = 0; i < nu.size(); ++i)
+        if (!std::isnan(areas[i])) total += areas[i], known_targets += nu[i];
+      const double scale = known_targets / total;
       ok = true;
       for (Eigen::Index i = 0; i < nu.size(); ++i) {
+        if (std::isnan(areas[i])) continue;
         if (!(areas[i] > 0))
           ok = false;
         else
@@ -343,14 +346,18 @@ PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
       const auto dirac_masses = vertex_targets(dirac_mesh, dirac_targets);
       R.ot.sites = sites.size();
       say("OT: " + std::to_string(sites.size()) + " Diracs (refinement " + std::to_string(level) + ")");
-      // a third of the incident spherical triangle areas: nearly the Voronoi areas of a flip-free map
+      // A third of the incident spherical triangle areas: nearly the Voronoi areas where the map is
+      // flip-free. Vertices of flipped faces get none (NaN); with more than 1 % of them, no estimate.
       std::vector<double> map_areas(sites.size(), 0.0);
+      std::size_t unknown = 0;
       for (const auto& f : dirac_mesh.faces) {
-        const double a = spherical_triangle_area(sites[u(f[0])], sites[u(f[1])], sites[u(f[2])]) / 3;
-        for (int v : f) map_areas[u(v)] += a;
+        const Vec3 &a = sites[u(f[0])], &b = sites[u(f[1])], &c = sites[u(f[2])];
+        const double area = a.dot(b.cross(c)) > 0 ? spherical_triangle_area(a, b, c) / 3 : NAN;
+        for (int v : f) map_areas[u(v)] += area;
       }
+      for (double a : map_areas) unknown += std::isnan(a);
       OtOutcome o = solve_ot(sites, dirac_masses, options.ot_tolerance, options.ot_max_iterations, say, &R.ot,
-                             count_flips(dirac_mesh, sites) == 0 ? &map_areas : nullptr);
+                             unknown * 100 <= sites.size() ? &map_areas : nullptr);
       if (o.usable)
         for (std::size_t i = 0; i < s.size(); ++i) s[i] = o.centroids[i];
     }
