@@ -467,14 +467,14 @@ TEST(SphereSolver, BuildersAgree) {
 }
 
 TEST(SphereSolver, HullBuilderUpdatesItsHullAcrossEvaluations) {
-  // One Sphere object keeps its last hull and updates it by flips for the next heights; where
-  // flips cannot reach the new hull (a cell empties) it runs Qhull again. Every evaluation must
+  // One Sphere object keeps its last hull and updates it for the next heights: flips, a vertex
+  // removed where a cell empties, a point inserted where it comes back. Every evaluation must
   // equal the clipping builder's.
   const auto sites = random_sphere(3000, 41);
   const Sphere hull = with_builder(Sphere::Builder::hull), clipping = with_builder(Sphere::Builder::clipping);
   const Eigen::VectorXd weights = random_heights(3000, 1e-4, 3);
   {
-    SCOPED_TRACE("first hull (Qhull)");
+    SCOPED_TRACE("first hull (grown by insertion)");
     expect_builders_agree(clipping, hull, sites, weights);
   }
   const Eigen::VectorXd moved = weights + random_heights(3000, 1e-4, 4);
@@ -485,12 +485,21 @@ TEST(SphereSolver, HullBuilderUpdatesItsHullAcrossEvaluations) {
   Eigen::VectorXd emptied = moved;
   emptied[17] -= 0.05;  // site 17's cell empties: its point falls inside the hull
   {
-    SCOPED_TRACE("a cell emptied (Qhull again)");
+    SCOPED_TRACE("a cell emptied (a vertex removed)");
     expect_builders_agree(clipping, hull, sites, emptied);
+    EXPECT_TRUE(hull.build_diagram(std::span(sites), emptied).cells[17].empty());
+    // a caller that rejects empty cells gets no cells at all, and the hull stays cached
+    const auto stopped = hull.build_diagram(std::span(sites), emptied, true);
+    EXPECT_TRUE(std::all_of(stopped.cells.begin(), stopped.cells.end(), [](const auto& c) { return c.empty(); }));
   }
   {
-    SCOPED_TRACE("back, from a hull that misses a point (Qhull again)");
+    SCOPED_TRACE("back, from a hull that misses a point (inserted again)");
     expect_builders_agree(clipping, hull, sites, moved);
+    // with no empty cell (zero heights: the Voronoi diagram), stopping changes nothing
+    const Eigen::VectorXd zero = Eigen::VectorXd::Zero(3000);
+    const auto full = hull.build_diagram(std::span(sites), zero, true);
+    EXPECT_EQ(adjacency(full), adjacency(clipping.build_diagram(std::span(sites), zero)));
+    EXPECT_TRUE(std::none_of(full.cells.begin(), full.cells.end(), [](const auto& c) { return c.empty(); }));
   }
   // a whole solve on one object: every Newton step and trial after the first reuses the hull
   Eigen::VectorXd targets(3000);
