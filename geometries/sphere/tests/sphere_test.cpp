@@ -466,6 +466,36 @@ TEST(SphereSolver, BuildersAgree) {
   expect_builders_agree(with_builder(Sphere::Builder::clipping), with_builder(Sphere::Builder::hull), sites, weights);
 }
 
+TEST(SphereSolver, BuildersAgreeOnCocircularSites) {
+  // Degenerate hulls for the default (hull) builder: every face of the cube has four co-circular
+  // sites, and a latitude–longitude grid has co-circular quadruples everywhere and two poles of
+  // high degree. Masses must match the certified clipping builder, also after a solve.
+  std::vector<std::vector<Vec>> cases{octahedron(), cube()};
+  std::vector<Vec> grid{Vec::UnitZ(), -Vec::UnitZ()};
+  for (int i = 1; i < 20; ++i)
+    for (int j = 0; j < 40; ++j) {
+      const double polar = std::numbers::pi * i / 20, azimuth = 2 * std::numbers::pi * j / 40;
+      grid.emplace_back(std::sin(polar) * std::cos(azimuth), std::sin(polar) * std::sin(azimuth), std::cos(polar));
+    }
+  cases.push_back(grid);
+  const Sphere hull = with_builder(Sphere::Builder::automatic), clipping = with_builder(Sphere::Builder::clipping);
+  for (const auto& sites : cases) {
+    SCOPED_TRACE(std::to_string(sites.size()) + " sites");
+    const auto n = static_cast<Eigen::Index>(sites.size());
+    const auto a = evaluate(clipping, UniformDensity{}, std::span(sites), Eigen::VectorXd::Zero(n), false);
+    const auto b = evaluate(hull, UniformDensity{}, std::span(sites), Eigen::VectorXd::Zero(n), false);
+    EXPECT_LT((a.masses - b.masses).cwiseAbs().maxCoeff(), 1e-13);
+    Eigen::VectorXd targets(n);
+    for (Eigen::Index i = 0; i < n; ++i) targets[i] = 2 + sites[static_cast<std::size_t>(i)].z();
+    targets *= 4 * std::numbers::pi / targets.sum();
+    const auto by_hull = solve(hull, UniformDensity{}, std::span(sites), targets);
+    const auto by_clipping = solve(clipping, UniformDensity{}, std::span(sites), targets);
+    ASSERT_TRUE(by_hull.summary.converged()) << by_hull.summary.message;
+    ASSERT_TRUE(by_clipping.summary.converged()) << by_clipping.summary.message;
+    EXPECT_LT((by_hull.weights - by_clipping.weights).cwiseAbs().maxCoeff(), 1e-9);
+  }
+}
+
 TEST(SphereSolver, HullBuilderUpdatesItsHullAcrossEvaluations) {
   // One Sphere object keeps its last hull and updates it for the next heights: flips, a vertex
   // removed where a cell empties, a point inserted where it comes back. Every evaluation must
