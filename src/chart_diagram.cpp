@@ -780,7 +780,8 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
 
   // Every operation below only adds volume (a reflex edge's flip, removing a vertex below its
   // neighbours' triangle, splitting a triangle at a point above it), so the surface grows to the
-  // hull and a point found inside once stays inside: the flips end, and the result is exact.
+  // hull and a point found inside once stays inside: the flips end, at the hull (up to the
+  // tolerance of `above`).
   // Past this many operations Qhull is cheaper anyway.
   const std::size_t max_operations = 16 * std::max(start.triangles.size(), 2 * n) + 1024;
   std::size_t operations = 0;
