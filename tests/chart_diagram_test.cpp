@@ -207,6 +207,25 @@ TEST(HullByFlips, RemovesPointsThatFallInsideAndInsertsThoseThatComeOut) {
   EXPECT_EQ(differing_edges(grown->edges, reference.edges, n), 0u);
 }
 
+TEST(HullByFlips, FromScratchWhereTheUpdateGetsStuck) {
+  // Flips from an arbitrary start can get stuck on a reflex edge whose reflex corner keeps a
+  // degree above 3 (found by a search over seeds: 1 of 156 such configurations). The sphere's
+  // builder then grows the hull from scratch, where insertion does not get stuck.
+  const std::size_t n = 2000;
+  auto before = lifted_sphere_points(n, 1e-3, 35);
+  auto after = before;
+  std::mt19937 rng(35);
+  for (int k = 0; k < 20; ++k) after[rng() % n] *= std::exp(0.1);  // 20 cells grow and swallow neighbours
+  for (int k = 0; k < 20; ++k) before[rng() % n] *= std::exp(0.1);
+  const sdot::Hull3 reference = sdot::convex_hull_3d(after);
+  const auto update = sdot::convex_hull_3d_by_flips(after, sdot::convex_hull_3d(before, true).surface);
+  EXPECT_FALSE(update.has_value()) << "this start no longer gets stuck: find another one for this test";
+  const auto scratch = sdot::convex_hull_3d_by_flips(after, {});
+  ASSERT_TRUE(scratch.has_value());
+  EXPECT_EQ(scratch->is_vertex, reference.is_vertex);
+  EXPECT_EQ(differing_edges(scratch->edges, reference.edges, n), 0u);
+}
+
 TEST(HullByFlips, GivesUpWhereOnlyQhullCanAnswer) {
   const std::size_t n = 500;
   const auto points = lifted_sphere_points(n, 2e-4, 3);

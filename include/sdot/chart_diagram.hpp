@@ -118,8 +118,9 @@ Hull3 convex_hull_3d(std::span<const Vec3> points, bool with_surface = false);
 /// surface. Every step adds volume, so a point found inside stays inside; a closed surface that is
 /// star-shaped around the origin and locally convex is convex (Tietze), so the result is the hull.
 /// Empty when that is not reached: a triangle of `start` faces the origin or names a point that
-/// does not exist, no tetrahedron holds the origin, a reflex edge stays stuck, or a walk or the
-/// flips run too long. The caller then runs convex_hull_3d.
+/// does not exist, no tetrahedron holds the origin, a reflex edge stays stuck (rare from an old
+/// hull; the caller may then start from scratch), or a walk or the flips run too long. The caller
+/// then runs convex_hull_3d.
 std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullTriangulation start);
 
 }  // namespace sdot

@@ -532,8 +532,12 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
       const std::lock_guard lock(hull_cache_->mutex);
       start = std::move(hull_cache_->surface);
     }
-    if (auto flipped = convex_hull_3d_by_flips(q, std::move(start))) {
-      hull = std::move(*flipped);
+    // From the previous hull; where a reflex edge stays stuck there (blub and brain_48k, once per
+    // solve), from scratch by insertion, which does not get stuck; Qhull last.
+    std::optional<Hull3> grown = convex_hull_3d_by_flips(q, std::move(start));
+    if (!grown) grown = convex_hull_3d_by_flips(q, {});
+    if (grown) {
+      hull = std::move(*grown);
     } else {
       try {
         hull = convex_hull_3d(q, true);
