@@ -94,7 +94,6 @@ struct Metrics {
 /// `orientation_sign` is +1 for an outward-oriented input, −1 for an inward one.
 Metrics evaluate_map(const Mesh& mesh, const std::vector<Vec3>& sphere, double orientation_sign);
 
-/// Exact spherical-triangle area (unsigned), Van Oosterom–Strackee.
 /// 2·atan2(num, den): the area of a spherical triangle (a, b, c) from num = det[a, b, c] and
 /// den = 1 + a·b + b·c + c·a (Van Oosterom–Strackee). For the small triangles of fine meshes
 /// (|num| < 0.01·den) a four-term series of atan, exact to rounding (next term < 1.2e-17
@@ -106,6 +105,7 @@ inline double triangle_area_from_det(double num, double den) {
   }
   return 2 * std::atan2(num, den);
 }
+/// Exact spherical-triangle area (unsigned), Van Oosterom–Strackee.
 double spherical_triangle_area(const Vec3& a, const Vec3& b, const Vec3& c);
 /// Signed version: negative when det[a, b, c] < 0.
 double signed_spherical_triangle_area(const Vec3& a, const Vec3& b, const Vec3& c);

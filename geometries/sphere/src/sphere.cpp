@@ -527,15 +527,16 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
     std::vector<Vec3> q(n);
     for (std::size_t i = 0; i < n; ++i) q[i] = std::exp(h[i]) * p[i];
     Hull3 hull;
-    HullTriangulation start;  // taken, not copied: a concurrent build then finds none and runs Qhull
+    HullTriangulation start;  // taken, not copied: a concurrent build then finds none and starts afresh
     {
       const std::lock_guard lock(hull_cache_->mutex);
       start = std::move(hull_cache_->surface);
     }
     // From the previous hull; where a reflex edge stays stuck there (blub and brain_48k, once per
     // solve), from scratch by insertion, which does not get stuck; Qhull last.
+    const bool from_previous = !start.triangles.empty();
     std::optional<Hull3> grown = convex_hull_3d_by_flips(q, std::move(start));
-    if (!grown) grown = convex_hull_3d_by_flips(q, {});
+    if (!grown && from_previous) grown = convex_hull_3d_by_flips(q, {});
     if (grown) {
       hull = std::move(*grown);
     } else {

@@ -117,7 +117,7 @@ class Sphere {
   Diagram<Point> build_in_chart(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
 
   /// The hull builder's last triangulation, shared by copies: the next diagram (the next Newton
-  /// iterate, heights a little different) starts its flips from it instead of a new Qhull run.
+  /// iterate, heights a little different) starts its flips from it instead of building anew.
   struct HullCache;
   static std::shared_ptr<HullCache> make_hull_cache();
   std::shared_ptr<HullCache> hull_cache_ = make_hull_cache();
