@@ -31,7 +31,7 @@ struct Result {
   Eigen::VectorXd masses;         ///< μ(W_i) at `weights`
   Eigen::VectorXd target_masses;  ///< ν_i after rescaling (see Summary::mass_scale)
   std::vector<Point> centroids;   ///< centroid of each cell (the site itself for an empty cell)
-  double transport_cost = 0;      ///< Σ_i ∫_{W_i} c(x, y_i) dμ
+  double transport_cost = 0;      ///< Σ_i ∫_{W_i} c(x, y_i) dμ (NaN with !Options::compute_transport_cost)
   Diagram<Point> diagram;         ///< the cells at `weights`
   Summary summary;
 

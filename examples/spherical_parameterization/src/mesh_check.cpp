@@ -277,23 +277,27 @@ Metrics evaluate_map(const Mesh& mesh, const std::vector<Vec3>& sphere, double o
   const auto am = face_areas(mesh);
   const double am_total = std::accumulate(am.begin(), am.end(), 0.0);
   m.d.resize(nf);
-  std::vector<double> angd(3 * nf);
-  double as_total = 0;
-  for (std::size_t f = 0; f < nf; ++f) {
+  std::vector<double> angd(3 * nf), as(nf);
+  std::vector<char> flipped(nf);
+  // Per-face work in parallel (igea_134k: 0.09 s a map serially); the sums below stay serial,
+  // so the metrics do not depend on the thread count.
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t fi = 0; fi < static_cast<std::ptrdiff_t>(nf); ++fi) {
+    const auto f = static_cast<std::size_t>(fi);
     const auto& t = mesh.faces[f];
     const Vec3 &q0 = s[static_cast<std::size_t>(t[0])], &q1 = s[static_cast<std::size_t>(t[1])],
                &q2 = s[static_cast<std::size_t>(t[2])];
-    const double as = spherical_triangle_area(q0, q1, q2);
-    as_total += as;
-    const double det = q0.dot(q1.cross(q2));
-    if (det * orientation_sign <= 0) ++m.flips;
-    m.d[f] = std::log((as / (4 * M_PI)) / (am[f] / am_total));
+    as[f] = spherical_triangle_area(q0, q1, q2);
+    flipped[f] = q0.dot(q1.cross(q2)) * orientation_sign <= 0;
+    m.d[f] = std::log((as[f] / (4 * M_PI)) / (am[f] / am_total));
     const Vec3 &p0 = mesh.vertices[static_cast<std::size_t>(t[0])], &p1 = mesh.vertices[static_cast<std::size_t>(t[1])],
                &p2 = mesh.vertices[static_cast<std::size_t>(t[2])];
     angd[3 * f] = std::abs(face_angle(p0, p1, p2) - face_angle(q0, q1, q2)) * 180 / M_PI;
     angd[3 * f + 1] = std::abs(face_angle(p1, p2, p0) - face_angle(q1, q2, q0)) * 180 / M_PI;
     angd[3 * f + 2] = std::abs(face_angle(p2, p0, p1) - face_angle(q2, q0, q1)) * 180 / M_PI;
   }
+  const double as_total = std::accumulate(as.begin(), as.end(), 0.0);
+  m.flips = static_cast<std::size_t>(std::count(flipped.begin(), flipped.end(), 1));
   m.sph_area_sum_over_4pi = as_total / (4 * M_PI);
   double sum = 0, sum_abs = 0, max_abs = 0;
   std::size_t n = 0;
@@ -319,11 +323,14 @@ Metrics evaluate_map(const Mesh& mesh, const std::vector<Vec3>& sphere, double o
     m.area_mean_abs = m.area_std = m.area_max_abs = std::nan("");
   }
   m.angle_mean_abs_deg = std::accumulate(angd.begin(), angd.end(), 0.0) / static_cast<double>(angd.size());
-  std::sort(angd.begin(), angd.end());
+  // The 95th percentile, interpolated as numpy does, from the two order statistics around it.
   const double pos = 0.95 * static_cast<double>(angd.size() - 1);
   const auto lo = static_cast<std::size_t>(std::floor(pos));
   const std::size_t hi = std::min(lo + 1, angd.size() - 1);
-  m.angle_p95_deg = angd[lo] + (pos - static_cast<double>(lo)) * (angd[hi] - angd[lo]);
+  std::nth_element(angd.begin(), angd.begin() + static_cast<std::ptrdiff_t>(lo), angd.end());
+  const double at_lo = angd[lo];
+  const double at_hi = hi == lo ? at_lo : *std::min_element(angd.begin() + static_cast<std::ptrdiff_t>(hi), angd.end());
+  m.angle_p95_deg = at_lo + (pos - static_cast<double>(lo)) * (at_hi - at_lo);
   return m;
 }
 

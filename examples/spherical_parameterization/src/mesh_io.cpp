@@ -370,10 +370,28 @@ void write_all(const std::string& path, const std::string& text) {
   if (!out) throw FileError(path + ": write failed");
 }
 
+/// The shortest text that reads back as exactly `v` (std::to_chars; several times faster than
+/// printf's %.17g, which was most of the writing time).
 void append_number(std::string& s, double v) {
   char buf[40];
-  const int n = std::snprintf(buf, sizeof buf, "%.17g", v);
-  s.append(buf, static_cast<std::size_t>(n));
+  const auto end = std::to_chars(buf, buf + sizeof buf, v).ptr;
+  s.append(buf, end);
+}
+
+void append_integer(std::string& s, long long v) {
+  char buf[24];
+  const auto end = std::to_chars(buf, buf + sizeof buf, v).ptr;
+  s.append(buf, end);
+}
+
+/// "x y z\n" and "<prefix>a b c\n" lines of the text formats.
+void append_vertex(std::string& s, const Vec3& v) {
+  append_number(s, v.x()), s += ' ', append_number(s, v.y()), s += ' ', append_number(s, v.z()), s += '\n';
+}
+void append_face(std::string& s, const char* prefix, const Face& f, int base) {
+  s += prefix;
+  append_integer(s, f[0] + base), s += ' ', append_integer(s, f[1] + base), s += ' ', append_integer(s, f[2] + base);
+  s += '\n';
 }
 
 }  // namespace
@@ -403,18 +421,14 @@ void write_mesh(const std::string& path, const Mesh& mesh, bool ply_ascii) {
   s.reserve(mesh.vertices.size() * 60 + mesh.faces.size() * 24);
   if (e == "off") {
     s += "OFF\n" + std::to_string(mesh.vertices.size()) + " " + std::to_string(mesh.faces.size()) + " 0\n";
-    for (const auto& v : mesh.vertices) {
-      append_number(s, v.x()), s += ' ', append_number(s, v.y()), s += ' ', append_number(s, v.z()), s += '\n';
-    }
-    for (const auto& f : mesh.faces)
-      s += "3 " + std::to_string(f[0]) + " " + std::to_string(f[1]) + " " + std::to_string(f[2]) + "\n";
+    for (const auto& v : mesh.vertices) append_vertex(s, v);
+    for (const auto& f : mesh.faces) append_face(s, "3 ", f, 0);
   } else if (e == "obj") {
     for (const auto& v : mesh.vertices) {
-      s += "v ", append_number(s, v.x()), s += ' ', append_number(s, v.y()), s += ' ', append_number(s, v.z()),
-          s += '\n';
+      s += "v ";
+      append_vertex(s, v);
     }
-    for (const auto& f : mesh.faces)
-      s += "f " + std::to_string(f[0] + 1) + " " + std::to_string(f[1] + 1) + " " + std::to_string(f[2] + 1) + "\n";
+    for (const auto& f : mesh.faces) append_face(s, "f ", f, 1);
   } else if (e == "ply") {
     s += "ply\nformat ";
     s += ply_ascii ? "ascii" : "binary_little_endian";
@@ -422,11 +436,8 @@ void write_mesh(const std::string& path, const Mesh& mesh, bool ply_ascii) {
          "\nproperty double x\nproperty double y\nproperty double z\nelement face " +
          std::to_string(mesh.faces.size()) + "\nproperty list uchar int vertex_indices\nend_header\n";
     if (ply_ascii) {
-      for (const auto& v : mesh.vertices) {
-        append_number(s, v.x()), s += ' ', append_number(s, v.y()), s += ' ', append_number(s, v.z()), s += '\n';
-      }
-      for (const auto& f : mesh.faces)
-        s += "3 " + std::to_string(f[0]) + " " + std::to_string(f[1]) + " " + std::to_string(f[2]) + "\n";
+      for (const auto& v : mesh.vertices) append_vertex(s, v);
+      for (const auto& f : mesh.faces) append_face(s, "3 ", f, 0);
     } else {
       static_assert(std::endian::native == std::endian::little, "binary PLY writer assumes a little-endian host");
       for (const auto& v : mesh.vertices) {

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <numeric>
+#include <random>
 #include <sstream>
 
 #include "mesh.hpp"
@@ -311,6 +312,35 @@ TEST(Metrics, IdentityMapOfIcosphere) {
   EXPECT_LT(e.angle_mean_abs_deg, 1e-9);
   // the opposite orientation sign counts every face as flipped
   EXPECT_EQ(evaluate_map(m, m.vertices, -1.0).flips, m.faces.size());
+}
+
+TEST(Metrics, AnglePercentileIsNumpysLinearInterpolation) {
+  // A perturbed map of an icosphere; the 95th percentile of the corner angle differences is
+  // recomputed here by sorting them all (evaluate_map selects the two order statistics).
+  const Mesh m = test::icosphere(3);
+  std::vector<Vec3> map = m.vertices;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> jitter(-0.02, 0.02);
+  for (auto& p : map) p = (p + Vec3(jitter(rng), jitter(rng), jitter(rng))).normalized();
+  const Metrics e = evaluate_map(m, map, 1.0);
+  auto angle = [](const Vec3& p, const Vec3& q, const Vec3& r) {
+    return std::acos(std::clamp((q - p).normalized().dot((r - p).normalized()), -1.0, 1.0));
+  };
+  std::vector<double> differences;
+  for (const auto& f : m.faces)
+    for (int c = 0; c < 3; ++c) {
+      const auto i = static_cast<std::size_t>(f[static_cast<std::size_t>(c)]);
+      const auto j = static_cast<std::size_t>(f[static_cast<std::size_t>((c + 1) % 3)]);
+      const auto k = static_cast<std::size_t>(f[static_cast<std::size_t>((c + 2) % 3)]);
+      differences.push_back(
+          std::abs(angle(m.vertices[i], m.vertices[j], m.vertices[k]) - angle(map[i], map[j], map[k])) * 180 / M_PI);
+    }
+  std::sort(differences.begin(), differences.end());
+  const double pos = 0.95 * static_cast<double>(differences.size() - 1);
+  const auto lo = static_cast<std::size_t>(pos);
+  const double expected = differences[lo] + (pos - static_cast<double>(lo)) * (differences[lo + 1] - differences[lo]);
+  EXPECT_GT(expected, 0.1);
+  EXPECT_NEAR(e.angle_p95_deg, expected, 1e-9);
 }
 
 TEST(Metrics, SphericalTriangleArea) {

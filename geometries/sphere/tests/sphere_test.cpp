@@ -395,6 +395,23 @@ TEST(SphereSolver, RotationInvariance) {
   EXPECT_EQ(a.adjacency(), b.adjacency());
 }
 
+TEST(SphereSolver, TransportCostIsSkippedOnRequest) {
+  const auto sites = random_sphere(300, 4);
+  const Eigen::VectorXd masses = Eigen::VectorXd::LinSpaced(300, 1, 10);
+  Options options;
+  options.tolerance = 1e-10;
+  const auto with_cost = solve(Sphere(), UniformDensity{}, std::span(sites), masses, options);
+  options.compute_transport_cost = false;
+  const auto without = solve(Sphere(), UniformDensity{}, std::span(sites), masses, options);
+  ASSERT_TRUE(with_cost.summary.converged() && without.summary.converged());
+  EXPECT_TRUE(std::isfinite(with_cost.transport_cost));
+  EXPECT_GT(with_cost.transport_cost, 0);
+  EXPECT_TRUE(std::isnan(without.transport_cost));
+  // Nothing else changes.
+  EXPECT_EQ(with_cost.weights, without.weights);
+  for (std::size_t i = 0; i < sites.size(); ++i) EXPECT_EQ(with_cost.centroids[i], without.centroids[i]);
+}
+
 TEST(SphereSolver, NonUniformDensityConvergesWithAnFDCheckedHessian) {
   const auto sites = random_sphere(400, 6);
   const FunctionDensity<Vec> density{[](const Vec& x) { return 1 + 0.9 * x.z(); }, 8};

@@ -4,6 +4,7 @@
 #include <Eigen/SparseCore>
 #include <cstdio>
 #include <exception>
+#include <limits>
 #include <type_traits>
 
 namespace sdot::detail {
@@ -263,14 +264,17 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
     result.masses = current.masses;
     result.target_masses = targets;
     // The transport cost, needed only now: integrated once on the final cells.
-    const auto cost_start = detail::Clock::now();
-    Eigen::VectorXd costs = Eigen::VectorXd::Zero(n);
+    result.transport_cost = std::numeric_limits<double>::quiet_NaN();
+    if (options.compute_transport_cost) {
+      const auto cost_start = detail::Clock::now();
+      Eigen::VectorXd costs = Eigen::VectorXd::Zero(n);
 #pragma omp parallel for schedule(dynamic, 256)
-    for (Eigen::Index i = 0; i < n; ++i)
-      if (!current.diagram.cells[i].empty())
-        costs[i] = density.integrate_cell(geometry, current.diagram.cells[i], sites[i], true).cost;
-    summary.timings.assembly_s += detail::seconds_since(cost_start);
-    result.transport_cost = costs.sum();
+      for (Eigen::Index i = 0; i < n; ++i)
+        if (!current.diagram.cells[i].empty())
+          costs[i] = density.integrate_cell(geometry, current.diagram.cells[i], sites[i], true).cost;
+      summary.timings.assembly_s += detail::seconds_since(cost_start);
+      result.transport_cost = costs.sum();
+    }
     result.centroids.resize(sites.size());
     for (Eigen::Index i = 0; i < n; ++i)
       result.centroids[i] = current.masses[i] > 0 ? Point(geometry.centroid(current.integrals[i])) : sites[i];
