@@ -45,7 +45,8 @@ struct Evaluation {
   Diagram<Point> diagram;
   std::vector<CellIntegrals<Point>> integrals;
   Eigen::VectorXd masses;
-  /// Off-diagonal Hessian weights ∫_Γij ρ/|∇(c_i − c_j)| for i < j (summed per pair on assembly).
+  /// Off-diagonal Hessian weights ∫_Γij ρ/|∇(c_i − c_j)| for i < j (summed per pair on assembly),
+  /// by increasing i and, for one i, in the order of its cell's edges: the same at every call.
   std::vector<Eigen::Triplet<double>> facet_weights;
 };
 
