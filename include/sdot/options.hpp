@@ -41,7 +41,7 @@ struct Options {
   double precision_floor_threshold = 1e-7;
   /// Integrate the transport cost on the final cells (`Result::transport_cost`). It is needed
   /// only there, and costs a pass of cost quadratures over every cell (sphere, 134,000 cells:
-  /// 0.1–0.15 s); with false, `transport_cost` is NaN.
+  /// about 0.2 s of a 4 s solve); with false, `transport_cost` is NaN.
   bool compute_transport_cost = true;
   /// Called after each iteration (progress output); may be empty.
   std::function<void(const IterationRecord&)> callback;

@@ -63,7 +63,7 @@ class LaplacianSolver {
       : use_cholmod_(sdot::has_cholmod() && unknowns >= cholmod_from_unknowns) {}
   void factorize(Eigen::Index n, const Triplets& triplets) {
 #ifdef SDOT_HAVE_CHOLMOD
-    if (!use_cholmod_ && analysed_ && order_.size() == n) {
+    if (!use_cholmod_ && analysed_ && order_.size() == n && slots_.size() == triplets.size()) {
       double* values = permuted_.valuePtr();
       std::fill(values, values + permuted_.nonZeros(), 0.0);
       for (std::size_t t = 0; t < triplets.size(); ++t)
@@ -489,8 +489,8 @@ namespace {
 /// One face seen from one of its vertices i, with everything the local energy of i reads:
 /// the other two vertices (counter-clockwise), the face's target area and the cotangents of the
 /// mesh angles at i, j and k (MIPS term). Stored contiguously per vertex, so a local energy reads
-/// one block instead of following vertex → face → (vertices, target, cotangents) indirections,
-/// whose cache misses dominated the optimization (igea_134k).
+/// one block instead of following vertex → face → (vertices, target, cotangents) indirections
+/// (igea_134k: the optimization about 20 % faster, docs/benchmarks.md).
 struct Corner {
   int j, k;
   double target;
