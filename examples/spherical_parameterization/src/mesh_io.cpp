@@ -26,6 +26,12 @@ std::string read_file(const std::string& path) {
   return ss.str();
 }
 
+/// The C locale's whitespace, without a std::isspace call per character (igea_134k's 10 MB OFF:
+/// reading 0.060–0.084 → 0.044–0.048 s).
+inline bool is_space(char c) {
+  return c == ' ' || c == '\n' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
+}
+
 /// Whitespace tokenizer over a buffer that skips '#' comments (OFF).
 class Tokens {
  public:
@@ -33,7 +39,7 @@ class Tokens {
       : s_(text), pos_(pos), path_(std::move(path)), comments_(comments) {}
   bool next(std::string_view& token) {
     for (;;) {
-      while (pos_ < s_.size() && std::isspace(static_cast<unsigned char>(s_[pos_]))) ++pos_;
+      while (pos_ < s_.size() && is_space(s_[pos_])) ++pos_;
       if (pos_ >= s_.size()) return false;
       if (comments_ && s_[pos_] == '#') {
         while (pos_ < s_.size() && s_[pos_] != '\n') ++pos_;
@@ -42,8 +48,7 @@ class Tokens {
       break;
     }
     const std::size_t start = pos_;
-    while (pos_ < s_.size() && !std::isspace(static_cast<unsigned char>(s_[pos_])) && !(comments_ && s_[pos_] == '#'))
-      ++pos_;
+    while (pos_ < s_.size() && !is_space(s_[pos_]) && !(comments_ && s_[pos_] == '#')) ++pos_;
     token = std::string_view(s_).substr(start, pos_ - start);
     return true;
   }
