@@ -7,6 +7,9 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <string>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include "mesh.hpp"
 #include "pipeline.hpp"
@@ -88,6 +91,16 @@ std::vector<double> read_factors(const std::string& path, std::size_t count) {
 }  // namespace
 
 int main(int argc, char** argv) {
+#if defined(__GLIBC__)
+  // The stages allocate and free arrays of several MB many times (diagrams, Newton matrices,
+  // factors, per-stage copies of the map). By default glibc maps many of them afresh and gives
+  // them back to the kernel when freed, so their pages are faulted in and zeroed again on the
+  // next use. Keeping freed memory in the heap made igea_134k faster in 8 of 9 interleaved pairs
+  // (docs/benchmarks.md).
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+  mallopt(M_TOP_PAD, 16 << 20);
+#endif
   std::string input, output, report_path, svg_path, weights_path;
   PipelineOptions options;
   bool quiet = false, ply_ascii = false;
