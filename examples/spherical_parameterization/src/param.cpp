@@ -10,6 +10,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <future>
 #include <numeric>
 #include <sdot/linear_solver.hpp>
 #include <unordered_map>
@@ -53,9 +54,10 @@ Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> nested_dissection(
 /// METIS nested dissection (bunny_35k, 8 factorisations: 0.037 s each against 0.064 s with AMD,
 /// for one ordering of 0.1 s), or CHOLMOD's supernodal Cholesky from `cholmod_from_unknowns`
 /// (there a single factorisation usually suffices, and CHOLMOD's own ordering is cheaper).
-/// The matrix comes as triplets, in the same order at every reweighting: after the first, their
-/// values go straight to their places in the permuted lower triangle, instead of through
-/// setFromTriplets and a symmetric permutation each time.
+/// The METIS ordering runs on the second core while the first system is factorised with AMD;
+/// the reweightings (if any) use it. The matrix comes as triplets, in the same order at every
+/// reweighting: from the second, their values go straight to their places in the permuted lower
+/// triangle, instead of through setFromTriplets and a symmetric permutation each time.
 class LaplacianSolver {
  public:
   using Triplets = std::vector<Eigen::Triplet<double>>;
@@ -63,7 +65,7 @@ class LaplacianSolver {
       : use_cholmod_(sdot::has_cholmod() && unknowns >= cholmod_from_unknowns) {}
   void factorize(Eigen::Index n, const Triplets& triplets) {
 #ifdef SDOT_HAVE_CHOLMOD
-    if (!use_cholmod_ && analysed_ && order_.size() == n && slots_.size() == triplets.size()) {
+    if (!use_cholmod_ && order_.size() == n && slots_.size() == triplets.size()) {
       double* values = permuted_.valuePtr();
       std::fill(values, values + permuted_.nonZeros(), 0.0);
       for (std::size_t t = 0; t < triplets.size(); ++t)
@@ -81,7 +83,10 @@ class LaplacianSolver {
       cholmod_.factorize(matrix);
       return;
     }
-    if (!analysed_) order_ = nested_dissection(matrix);
+    if (!analysed_ && !pending_order_.valid())
+      pending_order_ = std::async(std::launch::async, [copy = matrix] { return nested_dissection(copy); });
+    else if (pending_order_.valid())
+      order_ = pending_order_.get();
     if (order_.size() == n) {
       permuted_.resize(n, n);
       permuted_.selfadjointView<Eigen::Lower>() = matrix.selfadjointView<Eigen::Lower>().twistedBy(order_);
@@ -96,7 +101,7 @@ class LaplacianSolver {
         const int* last = permuted_.innerIndexPtr() + permuted_.outerIndexPtr()[col + 1];
         slots_[t] = static_cast<int>(std::find(first, last, row) - permuted_.innerIndexPtr());  // rows unsorted
       }
-      ordered_ldlt_.analyzePattern(permuted_), analysed_ = true;
+      ordered_ldlt_.analyzePattern(permuted_);
       ordered_ldlt_.factorize(permuted_);
       return;
     }
@@ -114,9 +119,10 @@ class LaplacianSolver {
 
  private:
   bool use_cholmod_ = false, analysed_ = false;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;  // AMD: the first system (and without METIS)
 #ifdef SDOT_HAVE_CHOLMOD
   sdot::CholmodSolver cholmod_;
+  std::future<Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>> pending_order_;
   Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> order_;
   Eigen::SparseMatrix<double> permuted_;  // lower triangle of P A Pᵀ
   std::vector<int> slots_;
