@@ -583,14 +583,8 @@ class FlipSurface {
   [[nodiscard]] bool faces_out(int a, int b, int c) const { return point(a).dot(point(b).cross(point(c))) > 0; }
   /// d lies above the plane of (a, b, c), counter-clockwise from outside; the relative tolerance
   /// keeps nearly coplanar points (co-circular cells) from flipping back and forth.
-  [[nodiscard]] bool above(int a, int b, int c, int d) const {
-    const Vec3 ab = point(b) - point(a), ac = point(c) - point(a), ad = point(d) - point(a);
-    return ab.cross(ac).dot(ad) > 1e-12 * ab.norm() * ac.norm() * ad.norm();
-  }
-  [[nodiscard]] bool below(int a, int b, int c, int d) const {
-    const Vec3 ab = point(b) - point(a), ac = point(c) - point(a), ad = point(d) - point(a);
-    return ab.cross(ac).dot(ad) < -1e-12 * ab.norm() * ac.norm() * ad.norm();
-  }
+  [[nodiscard]] bool above(int a, int b, int c, int d) const { return side(a, b, c, d) > 0; }
+  [[nodiscard]] bool below(int a, int b, int c, int d) const { return side(a, b, c, d) < 0; }
   /// Half-edge h = a→b of (a, b, c) is reflex when the apex d across it lies above (a, b, c).
   [[nodiscard]] bool reflex(int h) const { return above(vertex(h), vertex(next(h)), vertex(prev(h)), apex(twin(h))); }
   [[nodiscard]] int apex(int h) const { return vertex(prev(h)); }
@@ -674,6 +668,13 @@ class FlipSurface {
   }
   [[nodiscard]] int any_live_triangle() const {
     return static_cast<int>(std::find(alive_.begin(), alive_.end(), 1) - alive_.begin());
+  }
+
+  /// +1 when d lies above the plane of (a, b, c), −1 below, 0 within the relative tolerance.
+  [[nodiscard]] int side(int a, int b, int c, int d) const {
+    const Vec3 ab = point(b) - point(a), ac = point(c) - point(a), ad = point(d) - point(a);
+    const double volume = ab.cross(ac).dot(ad), tolerance = 1e-12 * ab.norm() * ac.norm() * ad.norm();
+    return volume > tolerance ? 1 : (volume < -tolerance ? -1 : 0);
   }
 
   /// Drops dead slots and renumbers the half-edges.
