@@ -1,6 +1,9 @@
-// The default linear solver: correct solutions through its LDLᵀ → CHOLMOD trial and pattern changes.
+// The linear solvers: the automatic solver's multigrid path, its fallback, and its direct path
+// (LDLᵀ → CHOLMOD trial) through pattern changes; the multigrid solver on its own.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
 #include <random>
 
 #include "sdot/linear_solver.hpp"
@@ -45,9 +48,9 @@ sdot::SparseMatrix spd_matrix(int k, int extra, unsigned seed) {
 }
 
 TEST(LinearSolver, AutomaticSolvesThroughTheTrialAndPatternChanges) {
-  sdot::AutomaticLinearSolver solver;
-  const int k = 160;  // 25 600 unknowns: above the trial size, so the second factorisation is a trial
-  ASSERT_GE(k * k, sdot::AutomaticLinearSolver::trial_size);
+  sdot::AutomaticLinearSolver solver(std::numeric_limits<Eigen::Index>::max());  // direct path only
+  const int k = 160;  // 25 600 unknowns: above the trial size (20,000), so the 2nd factorisation is a trial
+  EXPECT_FALSE(solver.used_multigrid());
   for (unsigned step = 0; step < 4; ++step) {
     const sdot::SparseMatrix matrix = spd_matrix(k, 500, step);
     const Eigen::VectorXd rhs = Eigen::VectorXd::LinSpaced(matrix.rows(), -1, 1);
@@ -58,6 +61,140 @@ TEST(LinearSolver, AutomaticSolvesThroughTheTrialAndPatternChanges) {
     EXPECT_LT((matrix * x - rhs).norm(), 1e-9 * rhs.norm()) << "step " << step;
   }
   std::printf("  the trial chose %s\n", sdot::has_cholmod() && solver_uses_cholmod(solver) ? "CHOLMOD" : "LDLT");
+}
+
+/// A Newton-like matrix: a k × k grid Laplacian whose edge weights span six orders of magnitude
+/// (log-uniform), pinned at unknown 0 as the Newton driver pins its gauge.
+sdot::SparseMatrix weighted_laplacian(int k, unsigned seed) {
+  std::mt19937 random(seed);
+  std::uniform_real_distribution<double> exponent(-3, 3);
+  std::vector<Eigen::Triplet<double>> entries;
+  auto couple = [&](int a, int b) {
+    const double w = std::pow(10.0, exponent(random));
+    entries.emplace_back(a, b, -w);
+    entries.emplace_back(b, a, -w);
+    entries.emplace_back(a, a, w);
+    entries.emplace_back(b, b, w);
+  };
+  for (int i = 0; i < k; ++i)
+    for (int j = 0; j < k; ++j) {
+      if (i + 1 < k) couple(i * k + j, (i + 1) * k + j);
+      if (j + 1 < k) couple(i * k + j, i * k + j + 1);
+      if (i + 1 < k && j + 1 < k) couple(i * k + j, (i + 1) * k + j + 1);  // triangles, as in a Laguerre graph
+    }
+  entries.emplace_back(0, 0, 1.0);
+  sdot::SparseMatrix matrix(k * k, k * k);
+  matrix.setFromTriplets(entries.begin(), entries.end());
+  return matrix;
+}
+
+Eigen::VectorXd zero_sum_rhs(Eigen::Index n, unsigned seed) {
+  std::mt19937 random(seed);
+  std::normal_distribution<double> normal;
+  Eigen::VectorXd rhs(n);
+  for (Eigen::Index i = 0; i < n; ++i) rhs[i] = normal(random);
+  rhs.array() -= rhs.mean();
+  return rhs;
+}
+
+TEST(Multigrid, SolvesAWeightedLaplacianToTheTolerance) {
+  const sdot::SparseMatrix matrix = weighted_laplacian(120, 1);
+  const Eigen::VectorXd rhs = zero_sum_rhs(matrix.rows(), 2);
+  sdot::MultigridSolver multigrid;
+  multigrid.compute(matrix);
+  ASSERT_EQ(multigrid.info(), Eigen::Success);
+  const auto sizes = multigrid.level_sizes();
+  ASSERT_GE(sizes.size(), 3u);  // 14,400 unknowns coarsen to at most 200 in several levels
+  for (std::size_t l = 1; l < sizes.size(); ++l) EXPECT_LT(sizes[l] * 3, sizes[l - 1]) << "level " << l;
+  EXPECT_LE(sizes.back(), 200);
+  multigrid.setTolerance(1e-10);
+  const Eigen::VectorXd x = multigrid.solve(rhs);
+  ASSERT_EQ(multigrid.info(), Eigen::Success);
+  EXPECT_LE((rhs - matrix * x).norm(), 1e-10 * rhs.norm());
+  EXPECT_NEAR(multigrid.error(), (rhs - matrix * x).norm() / rhs.norm(), 1e-12);
+  std::printf("  levels %zu, %d iterations to 1e-10\n", sizes.size(), multigrid.iterations());
+  EXPECT_LE(multigrid.iterations(), 60);  // Jacobi-CG needs thousands on this matrix
+  Eigen::SimplicialLDLT<sdot::SparseMatrix> ldlt(matrix);
+  const Eigen::VectorXd exact = ldlt.solve(rhs);
+  EXPECT_LT((x - exact).norm(), 1e-4 * exact.norm());
+}
+
+TEST(Multigrid, ScaledToleranceBoundsEveryResidualEntry) {
+  const sdot::SparseMatrix matrix = weighted_laplacian(80, 3);
+  const Eigen::VectorXd rhs = zero_sum_rhs(matrix.rows(), 4);
+  const Eigen::VectorXd scale = Eigen::VectorXd::LinSpaced(matrix.rows(), 1, 100);
+  sdot::MultigridSolver multigrid;
+  multigrid.compute(matrix);
+  multigrid.setTolerance(1);  // the scaled criterion alone decides
+  int previous_iterations = 0;
+  for (double tolerance : {1e-1, 1e-4, 1e-8}) {
+    multigrid.set_scaled_tolerance(scale, tolerance);
+    const Eigen::VectorXd x = multigrid.solve(rhs);
+    ASSERT_EQ(multigrid.info(), Eigen::Success) << tolerance;
+    const double worst = (scale.array() * (rhs - matrix * x).array().abs()).maxCoeff();
+    EXPECT_LE(worst, tolerance);
+    EXPECT_NEAR(multigrid.scaled_error(), worst, 1e-6 * worst);  // of the true residual
+    EXPECT_GT(multigrid.iterations(), previous_iterations) << "a tighter tolerance needs more iterations";
+    previous_iterations = multigrid.iterations();
+  }
+}
+
+TEST(Multigrid, ReportsBadMatricesAndTheIterationLimit) {
+  sdot::MultigridSolver multigrid;
+  sdot::SparseMatrix matrix = weighted_laplacian(30, 5);
+  matrix.coeffRef(17, 17) = -1;  // not positive definite
+  multigrid.compute(matrix);
+  EXPECT_EQ(multigrid.info(), Eigen::NumericalIssue);
+  const Eigen::VectorXd rhs = zero_sum_rhs(matrix.rows(), 6);
+  (void)multigrid.solve(rhs);
+  EXPECT_NE(multigrid.info(), Eigen::Success);
+
+  multigrid.compute(weighted_laplacian(60, 7));
+  ASSERT_EQ(multigrid.info(), Eigen::Success);
+  multigrid.setTolerance(1e-15);
+  multigrid.setMaxIterations(2);
+  (void)multigrid.solve(zero_sum_rhs(3600, 8));
+  EXPECT_EQ(multigrid.info(), Eigen::NoConvergence);
+  EXPECT_EQ(multigrid.iterations(), 2);
+  EXPECT_GT(multigrid.error(), 1e-15);
+
+  const Eigen::VectorXd wrong_size = Eigen::VectorXd::Ones(5);
+  (void)multigrid.solve(wrong_size);
+  EXPECT_EQ(multigrid.info(), Eigen::InvalidInput);
+}
+
+TEST(LinearSolver, AutomaticUsesMultigridAndFallsBackWhenItFails) {
+  const sdot::SparseMatrix matrix = weighted_laplacian(130, 9);  // 16,900 unknowns: multigrid by default
+  ASSERT_GE(matrix.rows(), sdot::AutomaticLinearSolver::default_multigrid_size);
+  const Eigen::VectorXd rhs = zero_sum_rhs(matrix.rows(), 10);
+  sdot::AutomaticLinearSolver solver;
+  solver.compute(matrix);
+  Eigen::VectorXd x = solver.solve(rhs);
+  ASSERT_EQ(solver.info(), Eigen::Success);
+  EXPECT_TRUE(solver.used_multigrid());
+  EXPECT_LE((rhs - matrix * x).norm(), 1e-11 * rhs.norm());
+
+  // An iteration that cannot reach its tolerance: the same system is then factorised instead,
+  // and later systems skip the multigrid path.
+  solver.multigrid().setMaxIterations(1);
+  solver.setTolerance(1e-14);
+  solver.compute(matrix);
+  x = solver.solve(rhs);
+  ASSERT_EQ(solver.info(), Eigen::Success);
+  EXPECT_FALSE(solver.used_multigrid());
+  EXPECT_TRUE(solver.multigrid_failed());
+  EXPECT_LE((rhs - matrix * x).norm(), 1e-9 * rhs.norm());
+  solver.compute(matrix);
+  EXPECT_FALSE(solver.used_multigrid());
+  EXPECT_LE((rhs - matrix * solver.solve(rhs)).norm(), 1e-9 * rhs.norm());
+
+  // A matrix the hierarchy cannot take (a non-positive diagonal) goes to the direct path at once.
+  sdot::AutomaticLinearSolver other;
+  sdot::SparseMatrix indefinite = matrix;
+  indefinite.coeffRef(5, 5) = 0;
+  other.compute(indefinite);
+  EXPECT_FALSE(other.used_multigrid());
+  EXPECT_TRUE(other.multigrid_failed());
 }
 
 }  // namespace

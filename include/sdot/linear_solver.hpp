@@ -9,6 +9,8 @@
 #include <Eigen/SparseCore>
 #include <chrono>
 #include <concepts>
+
+#include "sdot/multigrid.hpp"
 #ifdef SDOT_HAVE_CHOLMOD
 #include <dlfcn.h>
 
@@ -37,10 +39,11 @@ concept FactorizingLinearSolver = LinearSolver<S> && requires(S solver, const Sp
 
 /// The built-in choices (`Options::linear_solver`).
 enum class LinearSolverKind {
-  automatic,           ///< the default: AutomaticLinearSolver (LDLᵀ, or CHOLMOD when it is faster)
+  automatic,           ///< the default: AutomaticLinearSolver (multigrid for large systems, else LDLᵀ)
   ldlt,                ///< Eigen::SimplicialLDLT (sparse Cholesky)
   conjugate_gradient,  ///< Eigen::ConjugateGradient with a Jacobi preconditioner
   cholmod,             ///< CHOLMOD's supernodal Cholesky (when built with SuiteSparse)
+  multigrid,           ///< MultigridSolver: conjugate gradients with an algebraic multigrid V-cycle
 };
 
 /// True when this build offers LinearSolverKind::cholmod.
@@ -72,16 +75,15 @@ inline void use_single_threaded_blas() {
 }
 }  // namespace detail
 
-/// The default solver: Eigen's SimplicialLDLT, and for systems of at least `trial_size` unknowns
-/// one timed trial of CHOLMOD's supernodal Cholesky at the second factorisation; the faster of
-/// the two is kept for the rest of the solve. Which wins depends on the Hessian's fill and on
-/// the BLAS (measured at 10⁵ sites with OpenBLAS: on the sphere CHOLMOD 1.6 s against LDLᵀ
-/// 2.0–2.3 s per solve, on the plane 1.44 s against 1.29 s; see docs/benchmarks.md).
-/// The choice depends on timing: two runs of the same large problem may use different solvers
-/// and differ in the last bits. Choose `ldlt` or `cholmod` explicitly for bitwise-reproducible
-/// results. Every new pattern gets its own ordering: one ordering (AMD or METIS) kept across
-/// Newton iterations multiplied the fill by up to 6 at the next pattern (docs/benchmarks.md).
-class AutomaticLinearSolver {
+namespace detail {
+/// The direct path of AutomaticLinearSolver: Eigen's SimplicialLDLT, and for systems of at least
+/// `trial_size` unknowns one timed trial of CHOLMOD's supernodal Cholesky at the second
+/// factorisation; the faster of the two is kept for the rest of the solve. Which wins depends on
+/// the Hessian's fill and on the BLAS (measured at 10⁵ sites with OpenBLAS: on the sphere CHOLMOD
+/// 1.6 s against LDLᵀ 2.0–2.3 s per solve, on the plane 1.44 s against 1.29 s; see
+/// docs/benchmarks.md). Every new pattern gets its own ordering: one ordering (AMD or METIS) kept
+/// across Newton iterations multiplied the fill by up to 6 at the next pattern.
+class DirectLinearSolver {
  public:
   static constexpr Eigen::Index trial_size = 20000;
 
@@ -92,7 +94,7 @@ class AutomaticLinearSolver {
     const bool cholmod = choice_ == Choice::cholmod || trial;
     const auto start = std::chrono::steady_clock::now();
     if (cholmod) {
-      detail::use_single_threaded_blas();
+      use_single_threaded_blas();
       if (cholmod_pattern_ != pattern_) cholmod_.analyzePattern(matrix), cholmod_pattern_ = pattern_;
       cholmod_.factorize(matrix);
     } else {
@@ -106,15 +108,10 @@ class AutomaticLinearSolver {
     if (trial && choice_ == Choice::ldlt && cholmod_.info() != Eigen::Success) factorize_ldlt_again(matrix);
     ++factorizations_;
   }
-  void compute(const SparseMatrix& matrix) {
-    analyzePattern(matrix);
-    factorize(matrix);
-  }
   [[nodiscard]] Eigen::ComputationInfo info() const { return last_was_cholmod_ ? cholmod_.info() : ldlt_.info(); }
   [[nodiscard]] Eigen::VectorXd solve(const Eigen::VectorXd& rhs) const {
     return last_was_cholmod_ ? Eigen::VectorXd(cholmod_.solve(rhs)) : Eigen::VectorXd(ldlt_.solve(rhs));
   }
-  /// True once the trial chose CHOLMOD (visible in tests).
   [[nodiscard]] bool uses_cholmod() const { return choice_ == Choice::cholmod; }
 
  private:
@@ -132,9 +129,84 @@ class AutomaticLinearSolver {
   double ldlt_seconds_ = 0;
   bool last_was_cholmod_ = false;
 };
+}  // namespace detail
 #else
-/// Without CHOLMOD the default solver is the sparse LDLᵀ.
-using AutomaticLinearSolver = DefaultLinearSolver;
+namespace detail {
+/// Without CHOLMOD the direct path is the sparse LDLᵀ.
+using DirectLinearSolver = DefaultLinearSolver;
+}  // namespace detail
 #endif
+
+/// The default solver. From `multigrid_size` unknowns: MultigridSolver (conjugate gradients with an
+/// algebraic multigrid V-cycle), to the accuracy the Newton driver asks for; sphere, 10⁵ sites:
+/// 1.1 s of linear solves per Newton solve against 2.6 s with CHOLMOD (docs/benchmarks.md). Below
+/// that size, or once the multigrid iteration has failed on a system (it then stays off), the
+/// direct path: LDLᵀ, with a timed trial of CHOLMOD from 20,000 unknowns when available.
+/// The multigrid path is deterministic. The CHOLMOD trial depends on timing: two runs of the same
+/// large problem that fall back may use different direct solvers and differ in the last bits.
+class AutomaticLinearSolver {
+ public:
+  static constexpr Eigen::Index default_multigrid_size = 12000;
+
+  AutomaticLinearSolver() = default;
+  /// `multigrid_size`: from how many unknowns the multigrid path is tried first.
+  explicit AutomaticLinearSolver(Eigen::Index multigrid_size) : multigrid_size_(multigrid_size) {}
+
+  void analyzePattern(const SparseMatrix& matrix) { direct_.analyzePattern(matrix); }
+  void factorize(const SparseMatrix& matrix) {
+    last_was_multigrid_ = false;
+    if (matrix.rows() >= multigrid_size_ && !multigrid_failed_) {
+      multigrid_.compute(matrix);
+      if (multigrid_.info() == Eigen::Success) {
+        matrix_ = matrix;  // kept for a fallback factorisation, should the iteration fail
+        last_was_multigrid_ = true;
+        return;
+      }
+      multigrid_failed_ = true;
+    }
+    direct_.factorize(matrix);
+  }
+  void compute(const SparseMatrix& matrix) {
+    analyzePattern(matrix);
+    factorize(matrix);
+  }
+  [[nodiscard]] Eigen::ComputationInfo info() const { return last_was_multigrid_ ? multigrid_.info() : direct_.info(); }
+  /// Not const, unlike Eigen's solvers: a failed multigrid iteration falls back to a factorisation.
+  [[nodiscard]] Eigen::VectorXd solve(const Eigen::VectorXd& rhs) {
+    if (last_was_multigrid_) {
+      Eigen::VectorXd x = multigrid_.solve(rhs);
+      if (multigrid_.info() == Eigen::Success) return x;
+      multigrid_failed_ = true, last_was_multigrid_ = false;
+      direct_.analyzePattern(matrix_);
+      direct_.factorize(matrix_);
+    }
+    return direct_.solve(rhs);
+  }
+  /// Forwarded to the multigrid path (the direct path is exact anyway).
+  void setTolerance(double tolerance) { multigrid_.setTolerance(tolerance); }
+  void set_scaled_tolerance(const Eigen::VectorXd& scale, double tolerance) {
+    multigrid_.set_scaled_tolerance(scale, tolerance);
+  }
+  /// True when the last system was solved by the multigrid path (visible in tests).
+  [[nodiscard]] bool used_multigrid() const { return last_was_multigrid_; }
+  /// True once the multigrid path has failed and was switched off.
+  [[nodiscard]] bool multigrid_failed() const { return multigrid_failed_; }
+  /// True once the direct path's trial chose CHOLMOD (visible in tests).
+  [[nodiscard]] bool uses_cholmod() const {
+    if constexpr (requires(const detail::DirectLinearSolver& d) { d.uses_cholmod(); })
+      return direct_.uses_cholmod();
+    else
+      return false;
+  }
+  /// The multigrid path's solver (its iteration limit can be set; tests use it).
+  [[nodiscard]] MultigridSolver& multigrid() { return multigrid_; }
+
+ private:
+  Eigen::Index multigrid_size_ = default_multigrid_size;
+  MultigridSolver multigrid_;
+  detail::DirectLinearSolver direct_;
+  SparseMatrix matrix_;
+  bool last_was_multigrid_ = false, multigrid_failed_ = false;
+};
 
 }  // namespace sdot

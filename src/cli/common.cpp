@@ -58,7 +58,8 @@ LinearSolverKind read_linear_solver(const json& solver) {
   if (solver == "ldlt") return LinearSolverKind::ldlt;
   if (solver == "cg") return LinearSolverKind::conjugate_gradient;
   if (solver == "cholmod") return LinearSolverKind::cholmod;
-  throw InputError("linear_solver", "must be \"auto\", \"ldlt\", \"cg\" or \"cholmod\"");
+  if (solver == "multigrid") return LinearSolverKind::multigrid;
+  throw InputError("linear_solver", "must be \"auto\", \"ldlt\", \"cg\", \"cholmod\" or \"multigrid\"");
 }
 
 void print_progress(const IterationRecord& r) {

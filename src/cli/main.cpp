@@ -16,7 +16,7 @@ using sdot::cli::json;
 constexpr const char* usage_text =
     "usage:\n"
     "  sdot solve PROBLEM.json [-o RESULT.json] [--svg DIAGRAM.svg] [--quiet]\n"
-    "  sdot bench --geometry NAME --n N [--seed S] [--tolerance T] [--linear-solver auto|ldlt|cg|cholmod]\n"
+    "  sdot bench --geometry NAME --n N [--seed S] [--tolerance T] [--linear-solver auto|ldlt|cg|cholmod|multigrid]\n"
     "             [--density-triangles T] [--quiet]\n"
     "  sdot demo [--out DIR] [--quiet]\n"
     "  sdot --help | --version\n"

@@ -201,6 +201,30 @@ TYPED_TEST_P(GeometryConformance, NewtonConvergesOnRandomProblems) {
   }
 }
 
+// The multigrid path solves each Newton system only as accurately as the step needs; the result
+// must still meet the tolerance and agree with exact (LDLᵀ) Newton steps.
+TYPED_TEST_P(GeometryConformance, MultigridNewtonAgreesWithLdlt) {
+  using T = typename TestFixture::Traits;
+  const auto geometry = T::geometry();
+  const std::size_t n = 3000;
+  const auto sites = T::random_sites(n, this->random);
+  const Eigen::VectorXd masses = this->varying_masses(n, 100);
+  Options options;
+  options.linear_solver = LinearSolverKind::multigrid;
+  const auto multigrid = solve(geometry, UniformDensity{}, std::span(sites), masses, options);
+  options.linear_solver = LinearSolverKind::ldlt;
+  const auto ldlt = solve(geometry, UniformDensity{}, std::span(sites), masses, options);
+  std::printf("  multigrid: %d iterations, %.3f s of linear solves; LDLT: %d, %.3f s\n", multigrid.summary.iterations,
+              multigrid.summary.timings.linear_solve_s, ldlt.summary.iterations, ldlt.summary.timings.linear_solve_s);
+  ASSERT_TRUE(multigrid.summary.converged()) << multigrid.summary.message;
+  ASSERT_TRUE(ldlt.summary.converged()) << ldlt.summary.message;
+  EXPECT_LE(multigrid.summary.max_relative_error, options.tolerance);
+  EXPECT_LE(multigrid.summary.iterations, ldlt.summary.iterations + 2);
+  // Both meet the masses to 1e-9, so the weights agree to about 1e-9 over the Hessian's scale.
+  const double scale = 1 + ldlt.weights.cwiseAbs().maxCoeff();
+  EXPECT_LT((multigrid.weights - ldlt.weights).cwiseAbs().maxCoeff(), 1e-6 * scale);
+}
+
 TYPED_TEST_P(GeometryConformance, TwoSiteClosedForm) {
   using T = typename TestFixture::Traits;
   const auto c = T::two_site_case();
@@ -254,7 +278,7 @@ TYPED_TEST_P(GeometryConformance, CellsAreConsistent) {
 
 REGISTER_TYPED_TEST_SUITE_P(GeometryConformance, MassesSumToSourceMass, GradientIsMassMinusTarget,
                             HessianMatchesFiniteDifferences, FunctionDensityHessianMatchesFiniteDifferences,
-                            NewtonConvergesOnRandomProblems, TwoSiteClosedForm, VoronoiTargetsGiveConstantWeights,
-                            CellsAreConsistent);
+                            NewtonConvergesOnRandomProblems, MultigridNewtonAgreesWithLdlt, TwoSiteClosedForm,
+                            VoronoiTargetsGiveConstantWeights, CellsAreConsistent);
 
 }  // namespace sdot::testing

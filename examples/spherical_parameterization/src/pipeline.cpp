@@ -54,8 +54,6 @@ OtOutcome solve_ot(const std::vector<Vec3>& sites, const std::vector<double>& ma
   opt.tolerance = tolerance;
   opt.max_iterations = max_iterations;
   opt.compute_transport_cost = false;  // only the centroids are used
-  if (sdot::has_cholmod() && static_cast<long>(sites.size()) >= cholmod_from_unknowns)
-    opt.linear_solver = sdot::LinearSolverKind::cholmod;
   if (rec) rec->error_history.clear(), rec->iterations = 0;
   opt.callback = [&](const sdot::IterationRecord& r) {
     if (rec) rec->error_history.push_back(r.max_relative_error);

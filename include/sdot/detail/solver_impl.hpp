@@ -100,6 +100,16 @@ inline SparseMatrix assemble_hessian(Eigen::Index n, const std::vector<Eigen::Tr
   return hessian;
 }
 
+/// How accurately an iterative solver must solve the Newton system at max relative mass error
+/// `error` (inexact Newton, Dembo–Eisenstat–Steihaug): each cell's linearised mass within
+/// 0.1·error² of its target, relatively, keeps the quadratic convergence; at most 0.1, so that a
+/// full step cannot empty a cell through the solver's error alone; at least a tenth of the
+/// tolerance, which is all the last step needs. Measured on the sphere at 35,000 sites: the same
+/// Newton iterations as an exact solve, with 3–9 conjugate-gradient iterations per system.
+inline double newton_accuracy(double error, double tolerance) {
+  return std::max(std::min(0.1, 0.1 * error * error), 0.1 * tolerance);
+}
+
 template <class S>
 class NewtonLinearSolver {
  public:
@@ -109,8 +119,20 @@ class NewtonLinearSolver {
     if constexpr (std::is_same_v<S, CholmodSolver>) use_single_threaded_blas();
 #endif
   }
-  /// Solves H d = rhs; false when the factorisation or the iteration failed.
-  bool solve(const SparseMatrix& hessian, const Eigen::VectorXd& rhs, Eigen::VectorXd& direction) {
+  /// Solves H d = rhs; false when the factorisation or the iteration failed. An iterative solver
+  /// that takes a scaled tolerance (MultigridSolver) stops once every cell's predicted mass is
+  /// within `relative_accuracy` of its target, |(rhs − H d)_i| ≤ relative_accuracy·ν_i, and
+  /// ‖rhs − H d‖₂ ≤ relative_accuracy·‖rhs‖₂.
+  bool solve(const SparseMatrix& hessian, const Eigen::VectorXd& rhs, Eigen::VectorXd& direction,
+             const Eigen::VectorXd& targets = {}, double relative_accuracy = 0) {
+    if constexpr (requires(S s) { s.set_scaled_tolerance(targets, 1.0); })
+      if (targets.size() == rhs.size()) {
+        solver_.set_scaled_tolerance(targets.cwiseInverse(), relative_accuracy);
+        // ‖r‖₂ ≤ η‖rhs‖₂ with η < 1 makes the step a descent direction of the mass error; the
+        // per-cell bound alone did not (a bound of 0.1·ν_i in every cell can exceed the error of
+        // a nearly converged diagram, and the line search then failed).
+        solver_.setTolerance(relative_accuracy);
+      }
     if constexpr (FactorizingLinearSolver<S>) {
       if (!same_pattern(hessian)) {
         solver_.analyzePattern(hessian);
@@ -376,7 +398,8 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
       // (putting it on the pinned site would cap that site's accuracy at ~1e-9).
       rhs.array() -= rhs.mean();
       Eigen::VectorXd direction;
-      const bool solved = linear.solve(hessian, rhs, direction);
+      const bool solved =
+          linear.solve(hessian, rhs, direction, targets, detail::newton_accuracy(error.max_relative, tolerance));
       summary.timings.linear_solve_s += detail::seconds_since(linear_start);
       if (!solved)
         return {Status::linear_solve_failure,
@@ -471,6 +494,8 @@ sdot::Result<typename G::Point> sdot::solve(const G& geometry, const D& density,
     case LinearSolverKind::conjugate_gradient:
       return solve_with<ConjugateGradientSolver>(geometry, density, sites, target_masses, options,
                                                  std::move(initial_weights));
+    case LinearSolverKind::multigrid:
+      return solve_with<MultigridSolver>(geometry, density, sites, target_masses, options, std::move(initial_weights));
     case LinearSolverKind::cholmod:
 #ifdef SDOT_HAVE_CHOLMOD
       return solve_with<CholmodSolver>(geometry, density, sites, target_masses, options, std::move(initial_weights));

@@ -1,0 +1,423 @@
+// Smoothed-aggregation algebraic multigrid (Vaněk, Mandel, Brezina 1996) as the preconditioner of
+// conjugate gradients. Matrices are kept in compressed rows of their own (the input is symmetric,
+// so its compressed columns are its rows); the smoother is symmetric Gauss–Seidel, forward before
+// the coarse correction and backward after it, so that the V-cycle is a symmetric preconditioner.
+#include "sdot/multigrid.hpp"
+
+#include <omp.h>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace sdot {
+namespace {
+
+/// Compressed sparse rows.
+struct RowMatrix {
+  int rows = 0, cols = 0;
+  std::vector<int> start{0}, column;
+  std::vector<double> value;
+
+  [[nodiscard]] std::size_t row_begin(int i) const {
+    return static_cast<std::size_t>(start[static_cast<std::size_t>(i)]);
+  }
+  [[nodiscard]] std::size_t row_end(int i) const {
+    return static_cast<std::size_t>(start[static_cast<std::size_t>(i) + 1]);
+  }
+};
+
+inline std::size_t at(int i) {
+  return static_cast<std::size_t>(i);
+}
+
+/// y = A·x
+void multiply(const RowMatrix& a, const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+  for (int i = 0; i < a.rows; ++i) {
+    double sum = 0;
+    for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k) sum += a.value[k] * x[a.column[k]];
+    y[i] = sum;
+  }
+}
+
+/// The transpose of `a` (for the restriction Pᵀ).
+RowMatrix transpose(const RowMatrix& a) {
+  RowMatrix t;
+  t.rows = a.cols, t.cols = a.rows;
+  t.start.assign(at(a.cols) + 1, 0);
+  for (int c : a.column) ++t.start[at(c) + 1];
+  for (std::size_t c = 0; c < at(a.cols); ++c) t.start[c + 1] += t.start[c];
+  t.column.resize(a.column.size());
+  t.value.resize(a.value.size());
+  std::vector<int> cursor(t.start.begin(), t.start.end() - 1);
+  for (int i = 0; i < a.rows; ++i)
+    for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k) {
+      const auto slot = at(cursor[at(a.column[k])]++);
+      t.column[slot] = i, t.value[slot] = a.value[k];
+    }
+  return t;
+}
+
+/// a·b by rows (Gustavson), with a dense accumulator over b's columns; the rows are split in one
+/// contiguous range per thread and joined in order. Columns within a row are left unsorted
+/// (nothing here needs them sorted).
+RowMatrix product(const RowMatrix& a, const RowMatrix& b) {
+  RowMatrix c;
+  c.rows = a.rows, c.cols = b.cols;
+  c.start.assign(at(a.rows) + 1, 0);
+  std::vector<RowMatrix> parts;
+#pragma omp parallel
+  {
+#pragma omp single
+    parts.resize(static_cast<std::size_t>(omp_get_num_threads()));
+    const int thread = omp_get_thread_num(), threads = omp_get_num_threads();
+    const int first = static_cast<int>(static_cast<long>(a.rows) * thread / threads);
+    const int last = static_cast<int>(static_cast<long>(a.rows) * (thread + 1) / threads);
+    RowMatrix& part = parts[static_cast<std::size_t>(thread)];
+    std::vector<int> slot(at(b.cols), -1);  // position in `part` of the current row's column, or -1
+    part.column.reserve(at(last - first) * 16);
+    part.value.reserve(at(last - first) * 16);
+    for (int i = first; i < last; ++i) {
+      const std::size_t row_start = part.column.size();
+      for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k) {
+        const double aij = a.value[k];
+        const int j = a.column[k];
+        for (std::size_t l = b.row_begin(j); l < b.row_end(j); ++l) {
+          int& position = slot[at(b.column[l])];
+          if (position < 0) {
+            position = static_cast<int>(part.column.size());
+            part.column.push_back(b.column[l]), part.value.push_back(0.0);
+          }
+          part.value[at(position)] += aij * b.value[l];
+        }
+      }
+      for (std::size_t k = row_start; k < part.column.size(); ++k) slot[at(part.column[k])] = -1;
+      c.start[at(i) + 1] = static_cast<int>(part.column.size() - row_start);
+    }
+  }
+  for (std::size_t i = 0; i < at(a.rows); ++i) c.start[i + 1] += c.start[i];
+  c.column.reserve(at(c.start.back()));
+  c.value.reserve(at(c.start.back()));
+  for (const auto& part : parts) {
+    c.column.insert(c.column.end(), part.column.begin(), part.column.end());
+    c.value.insert(c.value.end(), part.value.begin(), part.value.end());
+  }
+  return c;
+}
+
+struct Level {
+  RowMatrix matrix;          // A (symmetric)
+  Eigen::VectorXd diagonal;  // a_ii
+  RowMatrix prolongation;    // P: this level's unknowns from the next level's
+  RowMatrix restriction;     // Pᵀ
+  mutable Eigen::VectorXd rhs, x, residual;
+};
+
+/// Aggregates of strongly connected unknowns (the three passes of Vaněk et al.): returns the
+/// aggregate of each unknown and the number of aggregates.
+std::vector<int> aggregate(const RowMatrix& a, const Eigen::VectorXd& diagonal, double theta, int& count) {
+  const int n = a.rows;
+  std::vector<int> owner(at(n), -1);
+  auto strong = [&](int i, std::size_t k) {
+    const int j = a.column[k];
+    return j != i && std::abs(a.value[k]) >= theta * std::sqrt(diagonal[i] * diagonal[j]);
+  };
+  count = 0;
+  // 1. an unknown whose strong neighbours are all free starts an aggregate with them
+  for (int i = 0; i < n; ++i) {
+    if (owner[at(i)] >= 0) continue;
+    bool free = true, any = false;
+    for (std::size_t k = a.row_begin(i); k < a.row_end(i) && free; ++k)
+      if (strong(i, k)) any = true, free = owner[at(a.column[k])] < 0;
+    if (!free || !any) continue;
+    owner[at(i)] = count;
+    for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k)
+      if (strong(i, k)) owner[at(a.column[k])] = count;
+    ++count;
+  }
+  // 2. the rest join the aggregate of their strongest aggregated neighbour (pass-1 owners only)
+  std::vector<int> joined(at(n), -1);
+  for (int i = 0; i < n; ++i) {
+    if (owner[at(i)] >= 0) continue;
+    double best = 0;
+    for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k) {
+      const int j = a.column[k];
+      if (strong(i, k) && owner[at(j)] >= 0 && std::abs(a.value[k]) > best)
+        best = std::abs(a.value[k]), joined[at(i)] = owner[at(j)];
+    }
+  }
+  for (int i = 0; i < n; ++i)
+    if (joined[at(i)] >= 0) owner[at(i)] = joined[at(i)];
+  // 3. what is left forms aggregates with its free neighbours; an unknown without strong
+  //    connections stays out (its row of P₀ is zero, and the smoothing of P interpolates it
+  //    from its neighbours' aggregates): as a singleton it would stall the coarsening
+  for (int i = 0; i < n; ++i) {
+    if (owner[at(i)] >= 0) continue;
+    bool any = false;
+    double best = 0;
+    int nearest = -1;
+    for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k) {
+      if (!strong(i, k)) continue;
+      int& other = owner[at(a.column[k])];
+      if (other < 0)
+        other = count, any = true;
+      else if (other != count && std::abs(a.value[k]) > best)
+        best = std::abs(a.value[k]), nearest = other;
+    }
+    if (any)
+      owner[at(i)] = count++;
+    else if (nearest >= 0)
+      owner[at(i)] = nearest;  // its free neighbours were taken earlier in this pass
+  }
+  return owner;
+}
+
+/// P = (I − ω D⁻¹A)·P₀, P₀ the aggregates' indicator columns; ω = 4/(3ρ), ρ bounded by
+/// Gershgorin's max_i Σ_j |a_ij| / a_ii.
+RowMatrix smoothed_prolongation(const RowMatrix& a, const Eigen::VectorXd& diagonal, const std::vector<int>& owner,
+                                int count) {
+  double rho = 0;
+  for (int i = 0; i < a.rows; ++i) {
+    double sum = 0;
+    for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k) sum += std::abs(a.value[k]);
+    rho = std::max(rho, sum / diagonal[i]);
+  }
+  const double omega = 4.0 / (3.0 * rho);
+  RowMatrix p;
+  p.rows = a.rows, p.cols = count;
+  p.start.assign(at(a.rows) + 1, 0);
+  p.column.reserve(a.column.size());
+  p.value.reserve(a.column.size());
+  for (int i = 0; i < a.rows; ++i) {
+    const std::size_t first = p.column.size();
+    auto add = [&](int c, double v) {
+      for (std::size_t k = first; k < p.column.size(); ++k)
+        if (p.column[k] == c) {
+          p.value[k] += v;
+          return;
+        }
+      p.column.push_back(c), p.value.push_back(v);
+    };
+    if (owner[at(i)] >= 0) add(owner[at(i)], 1.0);
+    for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k)
+      if (owner[at(a.column[k])] >= 0) add(owner[at(a.column[k])], -omega * a.value[k] / diagonal[i]);
+    p.start[at(i) + 1] = static_cast<int>(p.column.size());
+  }
+  return p;
+}
+
+Eigen::VectorXd diagonal_of(const RowMatrix& a, bool& positive) {
+  Eigen::VectorXd d = Eigen::VectorXd::Zero(a.rows);
+  for (int i = 0; i < a.rows; ++i)
+    for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k)
+      if (a.column[k] == i) d[i] += a.value[k];
+  positive = (d.array() > 0).all() && d.allFinite();
+  return d;
+}
+
+/// One Gauss–Seidel sweep on A x = b, forward or backward.
+void gauss_seidel(const Level& level, bool forward) {
+  const RowMatrix& a = level.matrix;
+  const int n = a.rows;
+  for (int step = 0; step < n; ++step) {
+    const int i = forward ? step : n - 1 - step;
+    double sum = level.rhs[i];
+    for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k)
+      if (a.column[k] != i) sum -= a.value[k] * level.x[a.column[k]];
+    level.x[i] = sum / level.diagonal[i];
+  }
+}
+
+}  // namespace
+
+struct MultigridSolver::Hierarchy {
+  std::vector<Level> levels;
+  Eigen::SimplicialLDLT<SparseMatrix> coarse;
+  Eigen::ComputationInfo info = Eigen::Success;
+  double tolerance = 1e-12;     // on ‖r‖₂ / ‖rhs‖₂
+  Eigen::VectorXd scale;        // empty: no scaled criterion
+  double scaled_tolerance = 0;  // on max_i scale_i·|r_i|
+  int max_iterations = 200;
+  mutable Eigen::ComputationInfo solve_info = Eigen::Success;
+  mutable int last_iterations = 0;
+  mutable double last_error = 0, last_scaled_error = 0;
+
+  /// x ≈ A⁻¹ b on `levels[l]` (b in levels[l].rhs, result in levels[l].x)
+  void cycle(std::size_t l) const {
+    const Level& level = levels[l];
+    if (l + 1 == levels.size()) {
+      level.x = coarse.solve(level.rhs);
+      return;
+    }
+    level.x.setZero();
+    gauss_seidel(level, true);
+    multiply(level.matrix, level.x, level.residual);
+    level.residual = level.rhs - level.residual;
+    multiply(level.restriction, level.residual, levels[l + 1].rhs);
+    cycle(l + 1);
+    const Eigen::VectorXd& coarse_x = levels[l + 1].x;
+    const RowMatrix& p = level.prolongation;
+    for (int i = 0; i < p.rows; ++i) {
+      double sum = 0;
+      for (std::size_t k = p.row_begin(i); k < p.row_end(i); ++k) sum += p.value[k] * coarse_x[p.column[k]];
+      level.x[i] += sum;
+    }
+    gauss_seidel(level, false);
+  }
+};
+
+MultigridSolver::MultigridSolver() : MultigridSolver(Settings{}) {}
+MultigridSolver::MultigridSolver(const Settings& settings)
+    : settings_(settings), hierarchy_(std::make_unique<Hierarchy>()) {}
+MultigridSolver::MultigridSolver(MultigridSolver&&) noexcept = default;
+MultigridSolver& MultigridSolver::operator=(MultigridSolver&&) noexcept = default;
+MultigridSolver::~MultigridSolver() = default;
+
+void MultigridSolver::compute(const SparseMatrix& matrix) {
+  Hierarchy& h = *hierarchy_;
+  h.levels.clear();
+  h.info = Eigen::Success;
+  h.solve_info = Eigen::Success;
+  Level finest;
+  RowMatrix& a = finest.matrix;
+  a.rows = a.cols = static_cast<int>(matrix.rows());
+  if (matrix.rows() != matrix.cols() || !matrix.isCompressed()) {
+    h.info = Eigen::InvalidInput;
+    return;
+  }
+  a.start.assign(matrix.outerIndexPtr(), matrix.outerIndexPtr() + matrix.outerSize() + 1);
+  a.column.assign(matrix.innerIndexPtr(), matrix.innerIndexPtr() + matrix.nonZeros());
+  a.value.assign(matrix.valuePtr(), matrix.valuePtr() + matrix.nonZeros());
+  h.levels.push_back(std::move(finest));
+  for (;;) {
+    Level& level = h.levels.back();
+    bool positive = false;
+    level.diagonal = diagonal_of(level.matrix, positive);
+    if (!positive) {
+      h.info = Eigen::NumericalIssue;
+      return;
+    }
+    const int n = level.matrix.rows;
+    level.rhs.resize(n), level.x.resize(n), level.residual.resize(n);
+    if (n <= settings_.coarse_size || static_cast<int>(h.levels.size()) >= settings_.max_levels) break;
+    int count = 0;
+    const auto owner = aggregate(level.matrix, level.diagonal, settings_.strength_threshold, count);
+    if (4 * count > 3 * n || count == 0) break;  // the coarsening stalls: solve this level directly
+    level.prolongation = smoothed_prolongation(level.matrix, level.diagonal, owner, count);
+    level.restriction = transpose(level.prolongation);
+    Level next;
+    next.matrix = product(level.restriction, product(level.matrix, level.prolongation));
+    h.levels.push_back(std::move(next));
+  }
+  // The coarsest level by a sparse LDLᵀ: small when the coarsening went well, and still exact
+  // (if slower) when it stalled.
+  const RowMatrix& coarsest = h.levels.back().matrix;
+  SparseMatrix coarse_matrix(coarsest.rows, coarsest.rows);
+  std::vector<Eigen::Triplet<double>> entries;
+  entries.reserve(coarsest.column.size());
+  for (int i = 0; i < coarsest.rows; ++i)
+    for (std::size_t k = coarsest.row_begin(i); k < coarsest.row_end(i); ++k)
+      entries.emplace_back(coarsest.column[k], i, coarsest.value[k]);
+  coarse_matrix.setFromTriplets(entries.begin(), entries.end());
+  h.coarse.compute(coarse_matrix);
+  if (h.coarse.info() != Eigen::Success || !(h.coarse.vectorD().array() > 0).all()) h.info = Eigen::NumericalIssue;
+}
+
+Eigen::ComputationInfo MultigridSolver::info() const {
+  return hierarchy_->info != Eigen::Success ? hierarchy_->info : hierarchy_->solve_info;
+}
+
+void MultigridSolver::setTolerance(double tolerance) {
+  hierarchy_->tolerance = tolerance;
+}
+
+void MultigridSolver::set_scaled_tolerance(const Eigen::VectorXd& scale, double tolerance) {
+  hierarchy_->scaled_tolerance = tolerance;
+  hierarchy_->scale = scale;
+}
+
+void MultigridSolver::setMaxIterations(int iterations) {
+  hierarchy_->max_iterations = iterations;
+}
+
+int MultigridSolver::iterations() const {
+  return hierarchy_->last_iterations;
+}
+
+double MultigridSolver::error() const {
+  return hierarchy_->last_error;
+}
+
+double MultigridSolver::scaled_error() const {
+  return hierarchy_->last_scaled_error;
+}
+
+std::vector<Eigen::Index> MultigridSolver::level_sizes() const {
+  std::vector<Eigen::Index> sizes;
+  for (const auto& level : hierarchy_->levels) sizes.push_back(level.matrix.rows);
+  return sizes;
+}
+
+Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& rhs) const {
+  const Hierarchy& h = *hierarchy_;
+  h.last_iterations = 0;
+  const auto n = static_cast<Eigen::Index>(h.levels.empty() ? 0 : h.levels.front().matrix.rows);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(n);
+  if (h.info != Eigen::Success || rhs.size() != n) {
+    h.solve_info = Eigen::InvalidInput;
+    return x;
+  }
+  const bool scaled = h.scale.size() == n;
+  const double rhs_norm = rhs.norm();
+  auto converged = [&](const Eigen::VectorXd& r) {  // records both measures
+    h.last_error = rhs_norm > 0 ? r.norm() / rhs_norm : r.norm();
+    h.last_scaled_error = scaled ? (h.scale.array() * r.array().abs()).maxCoeff() : 0.0;
+    return h.last_error <= h.tolerance && h.last_scaled_error <= h.scaled_tolerance;
+  };
+  Eigen::VectorXd r = rhs, z(n), p(n), q(n);
+  if (converged(r)) {
+    h.solve_info = Eigen::Success;
+    return x;
+  }
+  const Level& finest = h.levels.front();
+  auto precondition = [&](const Eigen::VectorXd& residual, Eigen::VectorXd& out) {
+    finest.rhs = residual;
+    h.cycle(0);
+    out = finest.x;
+  };
+  precondition(r, z);
+  p = z;
+  double rz = r.dot(z);
+  h.solve_info = Eigen::NoConvergence;
+  while (h.last_iterations < h.max_iterations) {
+    multiply(finest.matrix, p, q);
+    const double pq = p.dot(q);
+    if (!(pq > 0) || !std::isfinite(pq)) {
+      h.solve_info = Eigen::NumericalIssue;
+      break;
+    }
+    const double alpha = rz / pq;
+    x += alpha * p;
+    r -= alpha * q;
+    ++h.last_iterations;
+    bool restart = false;
+    if (converged(r)) {
+      // The updated residual drifts from b − A·x by round-off: decide on the true one, and
+      // restart from it when they disagree.
+      multiply(finest.matrix, x, q);
+      r = rhs - q;
+      if (converged(r)) {
+        h.solve_info = Eigen::Success;
+        break;
+      }
+      restart = true;
+    }
+    precondition(r, z);
+    const double rz_next = r.dot(z);
+    p = restart ? z : Eigen::VectorXd(z + (rz_next / rz) * p);
+    rz = rz_next;
+  }
+  return x;
+}
+
+}  // namespace sdot
