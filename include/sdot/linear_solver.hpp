@@ -139,7 +139,8 @@ using DirectLinearSolver = DefaultLinearSolver;
 
 /// The default solver. From `multigrid_size` unknowns: MultigridSolver (conjugate gradients with an
 /// algebraic multigrid V-cycle), to the accuracy the Newton driver asks for; sphere, 10⁵ sites:
-/// 1.1 s of linear solves per Newton solve against 2.6 s with CHOLMOD (docs/benchmarks.md). Below
+/// 0.79–0.82 s of linear solves per Newton solve against 1.70–1.71 s by the direct path
+/// (docs/benchmarks.md, "Session 7"). Below
 /// that size, or once the multigrid iteration has failed on a system (it then stays off), the
 /// direct path: LDLᵀ, with a timed trial of CHOLMOD from 20,000 unknowns when available.
 /// The multigrid path is deterministic. The CHOLMOD trial depends on timing: two runs of the same

@@ -12,9 +12,9 @@
 
 namespace sphparam {
 
-/// From this many unknowns the Tutte and Newton systems are factorised by CHOLMOD's supernodal
-/// Cholesky, which is faster there than Eigen's LDLᵀ (igea_134k: Tutte 0.61 s against 1.09 s;
-/// the library's automatic solver would first time one LDLᵀ factorisation, 1.0 s, to find out).
+/// From this many unknowns the Tutte systems are factorised by CHOLMOD's supernodal Cholesky,
+/// which is faster there than Eigen's LDLᵀ (igea_134k: 0.61 s against 1.09 s). The Newton
+/// systems go to the library's default solver (multigrid-preconditioned CG at these sizes).
 inline constexpr long cholmod_from_unknowns = 80000;
 
 /// Vertex adjacency (CSR, sorted) and per-vertex incident faces of a closed triangle mesh.
