@@ -19,17 +19,20 @@ bool solver_uses_cholmod(const S& solver) {
     return false;
 }
 
+/// The four entries of an edge of weight w between unknowns a and b of a graph Laplacian.
+void add_edge(std::vector<Eigen::Triplet<double>>& entries, int a, int b, double w) {
+  entries.emplace_back(a, b, -w);
+  entries.emplace_back(b, a, -w);
+  entries.emplace_back(a, a, w);
+  entries.emplace_back(b, b, w);
+}
+
 /// A grid Laplacian (k × k unknowns) plus `extra` random symmetric couplings and a positive
 /// diagonal shift: symmetric positive definite, with a pattern that changes with `seed`.
 sdot::SparseMatrix spd_matrix(int k, int extra, unsigned seed) {
   const int n = k * k;
   std::vector<Eigen::Triplet<double>> entries;
-  auto couple = [&](int a, int b, double w) {
-    entries.emplace_back(a, b, -w);
-    entries.emplace_back(b, a, -w);
-    entries.emplace_back(a, a, w);
-    entries.emplace_back(b, b, w);
-  };
+  auto couple = [&](int a, int b, double w) { add_edge(entries, a, b, w); };
   for (int i = 0; i < k; ++i)
     for (int j = 0; j < k; ++j) {
       if (i + 1 < k) couple(i * k + j, (i + 1) * k + j, 1);
@@ -69,13 +72,7 @@ sdot::SparseMatrix weighted_laplacian(int k, unsigned seed) {
   std::mt19937 random(seed);
   std::uniform_real_distribution<double> exponent(-3, 3);
   std::vector<Eigen::Triplet<double>> entries;
-  auto couple = [&](int a, int b) {
-    const double w = std::pow(10.0, exponent(random));
-    entries.emplace_back(a, b, -w);
-    entries.emplace_back(b, a, -w);
-    entries.emplace_back(a, a, w);
-    entries.emplace_back(b, b, w);
-  };
+  auto couple = [&](int a, int b) { add_edge(entries, a, b, std::pow(10.0, exponent(random))); };
   for (int i = 0; i < k; ++i)
     for (int j = 0; j < k; ++j) {
       if (i + 1 < k) couple(i * k + j, (i + 1) * k + j);
