@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <future>
+#include <limits>
 #include <numeric>
 #include <sdot/linear_solver.hpp>
 #include <unordered_map>
@@ -385,6 +386,113 @@ std::size_t untangle(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& 
 }
 
 // ------------------------------------------------------------------------ patch re-embedding
+// Garanzha et al.'s untangling energy (param.hpp); χ and the gradient are written out by hand.
+double untangling_energy(const ChartPatch& patch, const Eigen::MatrixX2d& x, double eps, Eigen::VectorXd& gradient,
+                         double& min_det) {
+  constexpr double theta = 0.5;  // shape and area terms weighted equally
+  gradient.setZero(2 * patch.free_count);
+  min_det = std::numeric_limits<double>::infinity();
+  double energy = 0;
+  for (std::size_t f = 0; f < patch.faces.size(); ++f) {
+    const auto& t = patch.faces[f];
+    Eigen::Matrix2d edges;
+    edges.col(0) = (x.row(t[1]) - x.row(t[0])).transpose();
+    edges.col(1) = (x.row(t[2]) - x.row(t[0])).transpose();
+    const Eigen::Matrix2d jacobian = edges * patch.reference_inverse[f];
+    const double d = jacobian.determinant(), root = std::sqrt(eps * eps + d * d);
+    // χ without cancellation when D < 0: (D + r)/2 = ε² / (2 (r - D))
+    const double chi = d >= 0 ? 0.5 * (d + root) : eps * eps / (2 * (root - d));
+    const double chi_prime = 0.5 * (1 + d / root), frobenius = jacobian.squaredNorm();
+    min_det = std::min(min_det, d);
+    energy += patch.reference_area[f] * ((1 - theta) * frobenius / chi + theta * (d * d + 1) / chi);
+    Eigen::Matrix2d cofactor;  // ∂D/∂J
+    cofactor << jacobian(1, 1), -jacobian(1, 0), -jacobian(0, 1), jacobian(0, 0);
+    const double d_energy_d_det = -(1 - theta) * frobenius * chi_prime / (chi * chi) +
+                                  theta * (2 * d / chi - (d * d + 1) * chi_prime / (chi * chi));
+    const Eigen::Matrix2d d_energy_d_edges = patch.reference_area[f] *
+                                             ((1 - theta) * 2 / chi * jacobian + d_energy_d_det * cofactor) *
+                                             patch.reference_inverse[f].transpose();
+    const Eigen::Vector2d per_corner[3] = {-d_energy_d_edges.col(0) - d_energy_d_edges.col(1), d_energy_d_edges.col(0),
+                                           d_energy_d_edges.col(1)};
+    for (int k = 0; k < 3; ++k)
+      if (t[u(k)] < patch.free_count) gradient.segment<2>(2 * t[u(k)]) += per_corner[k];
+  }
+  return energy;
+}
+
+bool untangle_chart_patch(const ChartPatch& patch, Eigen::MatrixX2d& x) {
+  const Eigen::Index n = 2 * patch.free_count;
+  Eigen::VectorXd gradient(n), trial_gradient(n), direction(n);
+  double min_det = 0;
+  untangling_energy(patch, x, 1.0, gradient, min_det);
+  if (min_det > 0) return true;
+  double eps = std::sqrt(1e-8 + 0.04 * min_det * min_det);
+  auto place = [&](Eigen::MatrixX2d& target, const Eigen::VectorXd& free_values) {
+    for (Eigen::Index i = 0; i < patch.free_count; ++i) target.row(i) = free_values.segment<2>(2 * i).transpose();
+  };
+  Eigen::VectorXd values(n);
+  for (Eigen::Index i = 0; i < patch.free_count; ++i) values.segment<2>(2 * i) = x.row(i).transpose();
+  Eigen::MatrixX2d trial = x;
+  // a bound on the work (face evaluations): about 0.2 s, so a hopeless patch costs little
+  const std::size_t max_evaluations =
+      std::max<std::size_t>(20'000'000 / std::max<std::size_t>(patch.faces.size(), 1), 100);
+  std::size_t evaluations = 0;
+  for (int outer = 0; outer < 30 && evaluations < max_evaluations; ++outer) {
+    constexpr int history = 8;
+    std::vector<Eigen::VectorXd> steps, gradient_changes;
+    std::vector<double> rho;
+    double energy = untangling_energy(patch, x, eps, gradient, min_det);
+    const double start_energy = energy;
+    for (int iteration = 0; iteration < 400 && evaluations < max_evaluations; ++iteration) {
+      // two-loop recursion: direction = -H ∇E
+      direction = -gradient;
+      std::vector<double> alpha(steps.size());
+      for (std::size_t k = steps.size(); k-- > 0;) {
+        alpha[k] = rho[k] * steps[k].dot(direction);
+        direction -= alpha[k] * gradient_changes[k];
+      }
+      if (!steps.empty())
+        direction *= steps.back().dot(gradient_changes.back()) / gradient_changes.back().squaredNorm();
+      for (std::size_t k = 0; k < steps.size(); ++k)
+        direction += (alpha[k] - rho[k] * gradient_changes[k].dot(direction)) * steps[k];
+      double slope = gradient.dot(direction);
+      if (!(slope < 0))
+        direction = -gradient, slope = -gradient.squaredNorm(), steps.clear(), gradient_changes.clear(), rho.clear();
+      double step = 1, trial_energy = 0, trial_min_det = 0;
+      bool accepted = false;
+      for (int halving = 0; halving < 50 && !accepted; ++halving, step *= 0.5) {
+        place(trial, values + step * direction);
+        trial_energy = untangling_energy(patch, trial, eps, trial_gradient, trial_min_det);
+        ++evaluations;
+        accepted = std::isfinite(trial_energy) && trial_energy <= energy + 1e-4 * step * slope;
+      }
+      if (!accepted) break;
+      step *= 2;  // undo the last halving of the loop
+      const double decrease = energy - trial_energy;
+      steps.push_back(step * direction);
+      gradient_changes.push_back(trial_gradient - gradient);
+      const double curvature = steps.back().dot(gradient_changes.back());
+      if (curvature > 1e-300) {
+        rho.push_back(1 / curvature);
+      } else {
+        steps.pop_back(), gradient_changes.pop_back();
+      }
+      if (static_cast<int>(steps.size()) > history)
+        steps.erase(steps.begin()), gradient_changes.erase(gradient_changes.begin()), rho.erase(rho.begin());
+      values += step * direction;
+      x = trial, gradient = trial_gradient, energy = trial_energy, min_det = trial_min_det;
+      if (decrease <= 1e-12 * std::abs(energy)) break;
+    }
+    if (min_det > 0) return true;
+    // the paper's rule: ε shrinks faster when the energy decreased much at this ε (min_det <= 0)
+    const double sigma = std::max(1 - energy / start_energy, 0.1);
+    const double root = std::sqrt(eps * eps + min_det * min_det);
+    const double mu = (1 - sigma) * (min_det >= 0 ? 0.5 * (min_det + root) : eps * eps / (2 * (root - min_det)));
+    eps = std::max(2 * std::sqrt(mu * (mu - min_det)), 1e-12);
+  }
+  return false;
+}
+
 std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& s, int max_rings) {
   const std::size_t nv = s.size();
   auto det = [&](std::size_t f) {
@@ -392,7 +500,7 @@ std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std:
     return s[u(t[0])].dot(s[u(t[1])].cross(s[u(t[2])]));
   };
   std::vector<int> depth(nv, -1), free_index(nv, -1);
-  std::vector<char> tried_face(mesh.faces.size(), 0);
+  std::vector<char> tried_face(mesh.faces.size(), 0), in_patch(mesh.faces.size(), 0);
   for (;;) {
     std::size_t seed = mesh.faces.size();
     for (std::size_t f = 0; f < mesh.faces.size() && seed == mesh.faces.size(); ++f)
@@ -463,11 +571,8 @@ std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std:
       for (Eigen::Index i = 0; i < m; ++i) triplets.emplace_back(i, i, diagonal[i]);
       Eigen::SparseMatrix<double> laplacian(m, m);
       laplacian.setFromTriplets(triplets.begin(), triplets.end());
-      Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(laplacian);
-      bool ok = lu.info() == Eigen::Success;
-      Eigen::MatrixX2d x;
-      if (ok) x = lu.solve(rhs), ok = lu.info() == Eigen::Success && x.allFinite();
-      if (ok) {
+      // Places the free vertices at chart positions; keeps them if no face around them is flipped.
+      auto try_positions = [&](const Eigen::MatrixX2d& x) {
         std::vector<Vec3> saved(free_vertices.size());
         for (std::size_t i = 0; i < free_vertices.size(); ++i) {
           const int v = free_vertices[i];
@@ -475,13 +580,68 @@ std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std:
           const auto r = static_cast<Eigen::Index>(i);
           s[u(v)] = (centre + x(r, 0) * e1 + x(r, 1) * e2).normalized();
         }
+        bool ok = true;
         for (std::size_t i = 0; i < free_vertices.size() && ok; ++i)
           for (int k = topo.face_offsets[u(free_vertices[i])]; k < topo.face_offsets[u(free_vertices[i]) + 1]; ++k)
             if (det(u(topo.vfaces[u(k)])) <= 0) ok = false;
-        if (ok)
-          repaired = true;
-        else
+        if (!ok)
           for (std::size_t i = 0; i < free_vertices.size(); ++i) s[u(free_vertices[i])] = saved[i];
+        return ok;
+      };
+      Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(laplacian);
+      if (lu.info() == Eigen::Success) {
+        const Eigen::MatrixX2d x = lu.solve(rhs);
+        repaired = lu.info() == Eigen::Success && x.allFinite() && try_positions(x);
+      }
+      if (!repaired) {
+        // Floater's embedding folds when the fixed ring is far from convex (arm.off: at every
+        // ring count); the untangling energy starts from the current, folded, positions instead
+        // and keeps the mesh's triangle shapes as its reference.
+        for (std::size_t j = 0; j < fixed.size(); ++j)
+          free_index[u(fixed[j])] = static_cast<int>(free_vertices.size() + j);
+        ChartPatch patch;
+        patch.free_count = m;
+        Eigen::MatrixX2d positions(m + static_cast<Eigen::Index>(fixed.size()), 2);
+        for (int v : free_vertices) positions.row(free_index[u(v)]) = chart(v).transpose();
+        for (int v : fixed) positions.row(free_index[u(v)]) = chart(v).transpose();
+        double chart_area = 0, reference_area = 0;
+        std::vector<std::size_t> patch_faces;
+        for (int v : free_vertices)
+          for (int k = topo.face_offsets[u(v)]; k < topo.face_offsets[u(v) + 1]; ++k) {
+            const auto f = u(topo.vfaces[u(k)]);
+            if (in_patch[f]) continue;
+            in_patch[f] = 1;
+            patch_faces.push_back(f);
+            const auto& t = mesh.faces[f];
+            patch.faces.push_back({free_index[u(t[0])], free_index[u(t[1])], free_index[u(t[2])]});
+            const Eigen::Vector2d a = chart(t[0]), ab = chart(t[1]) - a, ac = chart(t[2]) - a;
+            chart_area += 0.5 * std::abs(ab.x() * ac.y() - ab.y() * ac.x());
+            // the mesh triangle in its own plane (a degenerate one gets an equilateral reference)
+            const Vec3 along = mesh.vertices[u(t[1])] - mesh.vertices[u(t[0])];
+            const Vec3 other = mesh.vertices[u(t[2])] - mesh.vertices[u(t[0])];
+            const Vec3 normal = along.cross(other);
+            Eigen::Matrix2d reference;
+            if (normal.norm() > 1e-10 * (along.squaredNorm() + other.squaredNorm())) {
+              const Vec3 x_axis = along.normalized(), y_axis = normal.cross(x_axis).normalized();
+              reference << along.norm(), other.dot(x_axis), 0, other.dot(y_axis);
+            } else {
+              reference << 1, 0.5, 0, 0.5 * std::sqrt(3.0);
+            }
+            patch.reference_inverse.push_back(reference);  // inverted below, once scaled
+            patch.reference_area.push_back(0.5 * reference.determinant());
+            reference_area += patch.reference_area.back();
+          }
+        for (std::size_t f : patch_faces) in_patch[f] = 0;
+        // reference triangles scaled to the patch's area in the chart: only their shapes and
+        // relative sizes matter
+        const double scale = std::sqrt(chart_area / reference_area);
+        for (std::size_t f = 0; f < patch.faces.size(); ++f) {
+          patch.reference_inverse[f] = (scale * patch.reference_inverse[f]).inverse().eval();
+          patch.reference_area[f] *= scale * scale;
+        }
+        if (scale > 0 && std::isfinite(scale) && untangle_chart_patch(patch, positions))
+          repaired = try_positions(positions);
+        for (int v : fixed) free_index[u(v)] = -1;
       }
       for (int v : free_vertices) free_index[u(v)] = -1;
     }

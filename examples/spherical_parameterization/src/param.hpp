@@ -4,6 +4,8 @@
 /// initial map (Tutte + inverse stereographic + Möbius balancing), OT with sdot::Sphere,
 /// centroids, untangling, and a flip-free area-correcting optimization.
 
+#include <Eigen/Core>
+#include <array>
 #include <functional>
 #include <string>
 #include <vector>
@@ -60,9 +62,33 @@ std::size_t untangle(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& 
 /// Repairs flipped faces by re-embedding a disk around each: the vertices within k rings of a
 /// flipped face are placed by a Floater (mean-value, positive-weight) embedding in a gnomonic
 /// chart, with the next ring fixed; k grows (1, 2, 3, 4, 6, …, up to `max_rings`) until no face of
-/// the patch is flipped. Patches that cannot be repaired are left as they were. Returns the
-/// number of flipped faces left.
+/// the patch is flipped; where that embedding folds (a fixed ring far from convex), the patch is
+/// untangled from its current positions instead (untangle_chart_patch). Patches that cannot be
+/// repaired are left as they were. Returns the number of flipped faces left.
 std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& s, int max_rings = 64);
+
+/// A planar patch to untangle (the fallback of repair_flips_by_patches when Floater's embedding
+/// folds, i.e. when the fixed ring is far from convex): vertices 0 … free_count-1 move, the others
+/// are fixed; each face (counter-clockwise when untangled) has the inverse of its reference edge
+/// matrix [r1-r0, r2-r0] and its reference area.
+struct ChartPatch {
+  std::vector<std::array<int, 3>> faces;
+  std::vector<Eigen::Matrix2d> reference_inverse;
+  std::vector<double> reference_area;
+  Eigen::Index free_count = 0;
+};
+/// Foldover-free untangling energy (Garanzha, Kaporin, Kudryavtseva, Protais, Ray, Sokolov,
+/// "Foldover-free maps in 50 lines of code", 2021): per face, with J the Jacobian from the
+/// reference triangle and D = det J, area · ((|J|² + D² + 1) / (2 χ(D))), where
+/// χ(D) = (D + sqrt(ε² + D²)) / 2 > 0 even for inverted faces. Returns the energy; fills the
+/// gradient over the free vertices (x then y of each) and the smallest D.
+double untangling_energy(const ChartPatch& patch, const Eigen::MatrixX2d& x, double eps, Eigen::VectorXd& gradient,
+                         double& min_det);
+/// Minimises the untangling energy from `x` for a decreasing ε (L-BFGS with backtracking at each
+/// ε, the paper's ε rule) until every face is positively oriented: true then, with `x` updated.
+/// False when that fails in 30 ε steps or about 2·10⁷ face evaluations (e.g. the fixed ring's
+/// kernel is empty).
+bool untangle_chart_patch(const ChartPatch& patch, Eigen::MatrixX2d& x);
 
 struct OptimizeOptions {
   int max_sweeps = 200;

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <unistd.h>
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -458,6 +459,93 @@ TEST(Stages, PatchRepairReembedsFoldedDisk) {
   for (std::size_t v = 0; v < s.size(); ++v)
     if (m.vertices[v].dot(m.vertices[centre]) < std::cos(0.8) && s[v] != damaged[v]) ++moved_far;
   EXPECT_EQ(moved_far, 0u);
+}
+
+namespace {
+
+/// A fan: one free vertex (index 0) joined to a fixed boundary polygon (counter-clockwise),
+/// reference triangles equilateral of unit area.
+ChartPatch fan_patch(const std::vector<Eigen::Vector2d>& boundary, Eigen::MatrixX2d& x) {
+  ChartPatch patch;
+  patch.free_count = 1;
+  const auto n = static_cast<int>(boundary.size());
+  x.resize(n + 1, 2);
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (int k = 0; k < n; ++k)
+    x.row(k + 1) = boundary[static_cast<std::size_t>(k)].transpose(), mean += boundary[static_cast<std::size_t>(k)];
+  x.row(0) = (mean / n).transpose();  // the uniform-weight (Tutte) position
+  Eigen::Matrix2d reference;
+  const double side = std::sqrt(4 / std::sqrt(3.0));
+  reference << side, side / 2, 0, side * std::sqrt(3.0) / 2;
+  for (int k = 0; k < n; ++k) {
+    patch.faces.push_back({0, k + 1, (k + 1) % n + 1});
+    patch.reference_inverse.push_back(reference.inverse());
+    patch.reference_area.push_back(1.0);
+  }
+  return patch;
+}
+
+int folded_faces(const ChartPatch& patch, const Eigen::MatrixX2d& x) {
+  int folded = 0;
+  for (const auto& t : patch.faces) {
+    const Eigen::Vector2d ab = x.row(t[1]) - x.row(t[0]), ac = x.row(t[2]) - x.row(t[0]);
+    folded += ab.x() * ac.y() - ab.y() * ac.x() <= 0;
+  }
+  return folded;
+}
+
+}  // namespace
+
+TEST(Stages, UntanglingEnergyGradientMatchesFiniteDifferences) {
+  // an L-shaped fan with two free vertices, one of them folded over
+  ChartPatch patch;
+  Eigen::MatrixX2d x;
+  patch = fan_patch({{0, 0}, {4, 0}, {4, 1}, {1, 1}, {1, 4}, {0, 4}}, x);
+  patch.free_count = 2;  // the boundary's first corner moves too
+  x.row(1) << 0.3, -0.2;
+  for (double eps : {1.0, 1e-1, 1e-2}) {  // at smaller ε the energy (~1/ε²) swamps central differences
+    Eigen::VectorXd gradient, unused;
+    double min_det = 0, unused_det = 0;
+    untangling_energy(patch, x, eps, gradient, min_det);
+    ASSERT_EQ(gradient.size(), 4);
+    EXPECT_LT(min_det, 0);
+    for (Eigen::Index k = 0; k < 4; ++k) {
+      const double h = 1e-6;
+      Eigen::MatrixX2d plus = x, minus = x;
+      plus(k / 2, k % 2) += h;
+      minus(k / 2, k % 2) -= h;
+      const double numeric = (untangling_energy(patch, plus, eps, unused, unused_det) -
+                              untangling_energy(patch, minus, eps, unused, unused_det)) /
+                             (2 * h);
+      EXPECT_NEAR(gradient[k], numeric, 1e-5 * std::max(1.0, std::abs(numeric)))
+          << "eps " << eps << ", coordinate " << k;
+    }
+  }
+}
+
+TEST(Stages, UntanglingFindsTheKernelOfANonConvexRing) {
+  // L-shaped ring: its kernel is the unit square at the corner, and the uniform-weight position
+  // (5/3, 5/3) lies outside it, so a Tutte/Floater embedding folds faces here
+  Eigen::MatrixX2d x;
+  const ChartPatch patch = fan_patch({{0, 0}, {4, 0}, {4, 1}, {1, 1}, {1, 4}, {0, 4}}, x);
+  ASSERT_GT(folded_faces(patch, x), 0);
+  ASSERT_TRUE(untangle_chart_patch(patch, x));
+  EXPECT_EQ(folded_faces(patch, x), 0);
+  EXPECT_GT(x(0, 0), 0);
+  EXPECT_LT(x(0, 0), 1);
+  EXPECT_GT(x(0, 1), 0);
+  EXPECT_LT(x(0, 1), 1);
+  // the fixed ring did not move
+  EXPECT_EQ(x(3, 0), 4);
+  EXPECT_EQ(x(4, 1), 1);
+}
+
+TEST(Stages, UntanglingReportsAnEmptyKernel) {
+  // a ring traversed clockwise: no position of the centre orients every face counter-clockwise
+  Eigen::MatrixX2d x;
+  const ChartPatch patch = fan_patch({{0, 0}, {0, 1}, {1, 1}, {1, 0}}, x);
+  EXPECT_FALSE(untangle_chart_patch(patch, x));
+  EXPECT_TRUE(x.allFinite());
 }
 
 TEST(Stages, SubdivideKeepsOriginalVerticesFirst) {
