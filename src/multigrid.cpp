@@ -358,6 +358,14 @@ std::vector<Eigen::Index> MultigridSolver::level_sizes() const {
   return sizes;
 }
 
+SparseMatrix MultigridSolver::matrix() const {
+  if (hierarchy_->levels.empty()) return {};
+  // the input was symmetric, so its compressed columns, kept as rows, are the matrix itself
+  const RowMatrix& a = hierarchy_->levels.front().matrix;
+  return Eigen::Map<const SparseMatrix>(a.rows, a.cols, static_cast<Eigen::Index>(a.column.size()), a.start.data(),
+                                        a.column.data(), a.value.data());
+}
+
 Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& rhs) const {
   const Hierarchy& h = *hierarchy_;
   h.last_iterations = 0;

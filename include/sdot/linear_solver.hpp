@@ -159,7 +159,6 @@ class AutomaticLinearSolver {
     if (matrix.rows() >= multigrid_size_ && !multigrid_failed_) {
       multigrid_.compute(matrix);
       if (multigrid_.info() == Eigen::Success) {
-        matrix_ = matrix;  // kept for a fallback factorisation, should the iteration fail
         last_was_multigrid_ = true;
         return;
       }
@@ -178,8 +177,9 @@ class AutomaticLinearSolver {
       Eigen::VectorXd x = multigrid_.solve(rhs);
       if (multigrid_.info() == Eigen::Success) return x;
       multigrid_failed_ = true, last_was_multigrid_ = false;
-      direct_.analyzePattern(matrix_);
-      direct_.factorize(matrix_);
+      const SparseMatrix matrix = multigrid_.matrix();  // the hierarchy's copy: none kept here
+      direct_.analyzePattern(matrix);
+      direct_.factorize(matrix);
     }
     return direct_.solve(rhs);
   }
@@ -206,7 +206,6 @@ class AutomaticLinearSolver {
   Eigen::Index multigrid_size_ = default_multigrid_size;
   MultigridSolver multigrid_;
   detail::DirectLinearSolver direct_;
-  SparseMatrix matrix_;
   bool last_was_multigrid_ = false, multigrid_failed_ = false;
 };
 

@@ -6,7 +6,7 @@
 ///
 /// Where it pays: a sparse Cholesky factorisation of a Laguerre Hessian grows like n^1.5 and fills
 /// in; one V-cycle costs a few sweeps over the matrix. The Newton driver asks only for the accuracy
-/// each step needs (`set_tolerance` with a scale: relative to each target mass), so early steps take
+/// each step needs (`set_scaled_tolerance`: relative to each target mass), so early steps take
 /// a few cycles. Convergence is not guaranteed for every symmetric matrix: when the iteration does
 /// not reach the tolerance, `info()` is `Eigen::NoConvergence` and the caller falls back to a
 /// factorisation (the automatic solver does).
@@ -65,6 +65,9 @@ class MultigridSolver {
   [[nodiscard]] double scaled_error() const;
   /// Unknowns per level, finest first (visible in tests and benchmarks).
   [[nodiscard]] std::vector<Eigen::Index> level_sizes() const;
+  /// The matrix of the last `compute` (the hierarchy keeps it as its finest level), for a caller
+  /// that falls back to a factorisation without keeping a copy of its own; empty before any.
+  [[nodiscard]] SparseMatrix matrix() const;
 
  private:
   struct Hierarchy;

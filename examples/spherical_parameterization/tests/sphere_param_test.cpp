@@ -498,9 +498,8 @@ int folded_faces(const ChartPatch& patch, const Eigen::MatrixX2d& x) {
 
 TEST(Stages, UntanglingEnergyGradientMatchesFiniteDifferences) {
   // an L-shaped fan with two free vertices, one of them folded over
-  ChartPatch patch;
   Eigen::MatrixX2d x;
-  patch = fan_patch({{0, 0}, {4, 0}, {4, 1}, {1, 1}, {1, 4}, {0, 4}}, x);
+  ChartPatch patch = fan_patch({{0, 0}, {4, 0}, {4, 1}, {1, 1}, {1, 4}, {0, 4}}, x);
   patch.free_count = 2;  // the boundary's first corner moves too
   x.row(1) << 0.3, -0.2;
   for (double eps : {1.0, 1e-1, 1e-2}) {  // at smaller ε the energy (~1/ε²) swamps central differences
