@@ -32,6 +32,16 @@ void Options::validate() const {
   throw InputError(error.substr(0, colon), error.substr(colon + 2));
 }
 
+LinearSolverKind linear_solver_from_name(std::string_view name) {
+  if (name == "auto") return LinearSolverKind::automatic;
+  if (name == "ldlt") return LinearSolverKind::ldlt;
+  if (name == "cg") return LinearSolverKind::conjugate_gradient;
+  if (name == "cholmod") return LinearSolverKind::cholmod;
+  if (name == "multigrid") return LinearSolverKind::multigrid;
+  throw InputError("linear_solver", "must be \"auto\", \"ldlt\", \"cg\", \"cholmod\" or \"multigrid\", got \"" +
+                                        std::string(name) + "\"");
+}
+
 std::string_view to_string(Status status) {
   switch (status) {
     case Status::converged:

@@ -52,6 +52,11 @@ struct Options {
   void validate() const;
 };
 
+/// The linear solver named "auto", "ldlt", "cg", "cholmod" or "multigrid" (the names of the
+/// problem file, the command line and the Python package); InputError (field `linear_solver`)
+/// for any other name.
+LinearSolverKind linear_solver_from_name(std::string_view name);
+
 enum class Status {
   converged,             ///< the tolerance was reached
   iteration_limit,       ///< max_iterations were used up

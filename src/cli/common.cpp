@@ -54,12 +54,9 @@ void check_known_fields(const json& object, const std::string& where, const std:
 
 namespace {
 LinearSolverKind read_linear_solver(const json& solver) {
-  if (solver == "auto") return LinearSolverKind::automatic;
-  if (solver == "ldlt") return LinearSolverKind::ldlt;
-  if (solver == "cg") return LinearSolverKind::conjugate_gradient;
-  if (solver == "cholmod") return LinearSolverKind::cholmod;
-  if (solver == "multigrid") return LinearSolverKind::multigrid;
-  throw InputError("linear_solver", "must be \"auto\", \"ldlt\", \"cg\", \"cholmod\" or \"multigrid\"");
+  if (!solver.is_string())
+    throw InputError("linear_solver", "must be \"auto\", \"ldlt\", \"cg\", \"cholmod\" or \"multigrid\"");
+  return linear_solver_from_name(solver.get<std::string>());
 }
 
 void print_progress(const IterationRecord& r) {

@@ -14,6 +14,7 @@
 #include "mesh.hpp"
 #include "pipeline.hpp"
 #include "report.hpp"
+#include "run.hpp"
 
 using namespace sphparam;
 using json = nlohmann::json;
@@ -50,17 +51,6 @@ const char* usage =
 
 double since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
-
-json metrics_json(const Metrics& m) {
-  return {{"area_mean_abs", m.area_mean_abs},
-          {"area_std", m.area_std},
-          {"area_max_abs", m.area_max_abs},
-          {"area_nonfinite", m.area_nonfinite},
-          {"angle_mean_abs_deg", m.angle_mean_abs_deg},
-          {"angle_p95_deg", m.angle_p95_deg},
-          {"flips", m.flips},
-          {"sph_area_sum_over_4pi", m.sph_area_sum_over_4pi}};
 }
 
 std::vector<double> read_factors(const std::string& path, std::size_t count) {
@@ -177,101 +167,38 @@ int main(int argc, char** argv) {
   try {
     auto t = std::chrono::steady_clock::now();
     ReadInfo info;
-    Mesh raw = read_mesh(input, &info);
+    const Mesh raw = read_mesh(input, &info);
     const double read_s = since(t);
-    const Validation v = validate(raw, info);
-    json defects = json::array();
-    for (const auto& d : v.defects) {
-      defects.push_back({{"defect", d.name}, {"count", d.count}, {"fatal", d.fatal}, {"message", d.message}});
-      std::cerr << (d.fatal ? "error: " : "warning: ") << input << ": " << d.message << "\n";
-    }
-    report["input_statistics"] = {{"format", info.format},
-                                  {"vertices_in_file", raw.vertices.size()},
-                                  {"vertices", v.vertices},
-                                  {"faces", v.faces},
-                                  {"edges", v.edges},
-                                  {"euler_characteristic", v.euler_characteristic},
-                                  {"components", v.components},
-                                  {"signed_volume", v.signed_volume},
-                                  {"orientation", v.inward ? -1 : 1},
-                                  {"min_angle_deg", v.min_angle_deg},
-                                  {"area_ratio_max_min", v.area_ratio},
-                                  {"defects", defects}};
-    if (!v.ok()) {
+    const std::vector<double> factors =
+        weights_path.empty() ? std::vector<double>{} : read_factors(weights_path, raw.vertices.size());
+    options.progress = progress;
+    // The initial map's metrics appear only in the report and the histogram.
+    const bool want_initial = !report_path.empty() || !svg_path.empty();
+    RunResult run = run_parameterization(raw, info, options, factors, want_initial, input);
+    for (const auto& d : run.report["input_statistics"]["defects"])
+      std::cerr << (d["fatal"].get<bool>() ? "error: " : "warning: ") << input << ": "
+                << d["message"].get<std::string>() << "\n";
+    report.update(run.report);
+    if (run.status == "invalid_input") {
       std::cerr << "error: " << input << " is not a valid closed genus-0 manifold triangle mesh; nothing written\n";
-      report["status"] = "invalid_input";
       write_report();
       return 1;
     }
-    progress("read " + input + " (" + std::to_string(v.vertices) + " vertices, " + std::to_string(v.faces) + " faces)");
-    std::vector<int> kept;
-    Mesh mesh = drop_unreferenced(raw, &kept);
-    if (!weights_path.empty()) {
-      const auto all = read_factors(weights_path, raw.vertices.size());
-      options.vertex_factors.resize(kept.size());
-      for (std::size_t i = 0; i < kept.size(); ++i) options.vertex_factors[i] = all[static_cast<std::size_t>(kept[i])];
-    }
-    Mesh work = mesh;  // outward oriented
-    if (v.inward)
-      for (auto& f : work.faces) std::swap(f[1], f[2]);
-    options.progress = progress;
     t = std::chrono::steady_clock::now();
-    PipelineResult R = parameterize(work, options);
-    const double compute_s = since(t);
-
-    t = std::chrono::steady_clock::now();
-    Mesh out = mesh;
-    out.vertices = R.sphere;
-    for (auto& p : out.vertices) p.normalize();
-    write_mesh(output, out, ply_ascii);
+    write_mesh(output, run.output, ply_ascii);
     const double write_s = since(t);
     const double total_s = since(start);
     progress("wrote " + output);
-
-    const double sign = v.inward ? -1.0 : 1.0;
-    // The initial map's metrics appear only in the report and the histogram.
-    const bool want_initial = !report_path.empty() || !svg_path.empty();
-    const Metrics m0 = want_initial ? evaluate_map(mesh, R.initial, sign) : Metrics{};
-    const Metrics m1 = evaluate_map(mesh, R.sphere, sign);
-    report["status"] = m1.flips == 0 ? "ok" : "flipped_faces";
-    json stages = json::array();
     json times = {{"read_s", read_s}};
-    for (const auto& s : R.stages) {
-      stages.push_back({{"stage", s.name},
-                        {"seconds", s.seconds},
-                        {"target_area_mean_abs", s.area_mean_abs},
-                        {"flips", s.flips},
-                        {"note", s.note}});
-      times[s.name + "_s"] = times.value(s.name + "_s", 0.0) + s.seconds;  // summed over OT reruns
-    }
-    times["compute_s"] = compute_s;
+    times.update(report["times"]);
     times["write_s"] = write_s;
     times["total_s"] = total_s;
     report["times"] = times;
-    report["stages"] = stages;
-    report["ot"] = {{"status", R.ot.status},
-                    {"message", R.ot.message},
-                    {"newton_iterations", R.ot.iterations},
-                    {"max_relative_mass_error", R.ot.max_relative_error},
-                    {"rms_relative_mass_error", R.ot.rms_relative_error},
-                    {"diracs", R.ot.sites},
-                    {"refinement_levels", R.ot.refine},
-                    {"height_range", R.ot.height_range},
-                    {"error_history", R.ot.error_history}};
-    report["optimizer"] = {{"sweeps", R.optimizer.sweeps},
-                           {"energy_start", R.optimizer.energy_start},
-                           {"energy_end", R.optimizer.energy_end},
-                           {"untangle_remaining_flips", R.untangle_remaining}};
-    report["initial_map"] = metrics_json(m0);
-    report["final_map"] = metrics_json(m1);
-    if (!options.vertex_factors.empty()) {
-      const auto targets = face_targets(work, options.vertex_factors);
-      report["final_map"]["target_area_mean_abs"] = target_area_error(work, R.sphere, targets);
-    }
     write_report();
+    const Metrics& m1 = run.final_map;
     if (!svg_path.empty()) {
       std::ofstream svg(svg_path);
-      svg << histogram_svg(m0.d, m1.d, "Area distortion: " + input);
+      svg << histogram_svg(run.initial.d, m1.d, "Area distortion: " + input);
       if (!svg) std::cerr << "error: cannot write " << svg_path << "\n";
     }
     char line[256];

@@ -126,11 +126,8 @@ SolveOutput solve_plane(const json& problem, const RunContext& context) {
 }
 
 json bench_plane(const BenchRequest& request) {
-  std::mt19937_64 random(request.seed);
-  std::uniform_real_distribution<double> uniform(0, 1);
-  std::vector<Point> sites(request.n);
-  for (auto& s : sites) s = Point(uniform(random), uniform(random));
   const Plane plane;
+  const auto sites = plane.uniform_samples(request.n, request.seed);
   return run_bench(plane, std::span<const Point>(sites), equal_masses(request.n), request, [&](std::size_t triangles) {
     // A k × k grid of squares, two triangles each; ρ = 1 + ½ sin(2πx) sin(2πy).
     const int k = std::max(1, static_cast<int>(std::lround(std::sqrt(static_cast<double>(triangles) / 2))));

@@ -1,8 +1,10 @@
 #include "sdot/geometries/plane.hpp"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <random>
 
 #include "sdot/error.hpp"
 #include "sdot/quadrature.hpp"
@@ -143,6 +145,21 @@ double Plane::facet_weight(const Point& a, const Point& b, const Point& site_i, 
   double integral = 0;
   for (const auto& node : gauss_legendre(order)) integral += node.weight * rho(a + node.x * (b - a));
   return integral * (b - a).norm() / (site_i - site_j).norm();
+}
+
+std::vector<Plane::Point> Plane::uniform_samples(std::size_t count, std::uint64_t seed) const {
+  Eigen::AlignedBox2d box;
+  for (const auto& v : domain_.vertices()) box.extend(v);
+  std::mt19937_64 random(seed);
+  std::uniform_real_distribution<double> uniform(0, 1);
+  std::vector<Point> samples;
+  samples.reserve(count);
+  while (samples.size() < count) {
+    const double x = uniform(random), y = uniform(random);
+    const Point p(box.min().x() + (box.max().x() - box.min().x()) * x, box.min().y() + (box.max().y() - box.min().y()) * y);
+    if (domain_.contains(p)) samples.push_back(p);
+  }
+  return samples;
 }
 
 }  // namespace sdot

@@ -183,20 +183,8 @@ SolveOutput solve_sphere(const json& problem, const RunContext& context) {
                        [&](const Result<Point>& result) { return draw(sphere, sites, result); });
 }
 
-std::vector<Point> uniform_sites(std::size_t n, unsigned seed) {
-  std::mt19937_64 random(seed);
-  std::normal_distribution<double> normal(0, 1);
-  std::vector<Point> sites(n);
-  for (auto& s : sites) {
-    do s = Point(normal(random), normal(random), normal(random));
-    while (s.norm() < 1e-6);
-    s.normalize();
-  }
-  return sites;
-}
-
 json bench_sphere(const BenchRequest& request) {
-  const auto sites = uniform_sites(request.n, request.seed);
+  const auto sites = Sphere::uniform_samples(request.n, request.seed);
   const Sphere sphere;
   return run_bench(
       sphere, std::span<const Point>(sites), equal_masses(request.n, 4 * pi), request, [&](std::size_t triangles) {
@@ -216,7 +204,7 @@ json bench_sphere(const BenchRequest& request) {
 
 json demo_sphere() {
   // 1500 sites, uniform on the sphere; masses 10× larger in the north than in the south.
-  const auto points = uniform_sites(1500, 7);
+  const auto points = Sphere::uniform_samples(1500, 7);
   json sites = json::array(), masses = json::array();
   for (const auto& p : points) {
     sites.push_back({p.x(), p.y(), p.z()});

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <mutex>
 #include <numbers>
+#include <random>
 #include <string>
 
 #include "sdot/cap_tree.hpp"
@@ -888,6 +889,18 @@ std::vector<Sphere::Point> Sphere::edge_points(const Cell<Point>& cell, std::siz
     }
   }
   return points;
+}
+
+std::vector<Sphere::Point> Sphere::uniform_samples(std::size_t count, std::uint64_t seed) {
+  std::mt19937_64 random(seed);
+  std::normal_distribution<double> normal(0, 1);
+  std::vector<Point> samples(count);
+  for (auto& s : samples) {
+    do s = Point(normal(random), normal(random), normal(random));
+    while (s.norm() < 1e-6);
+    s.normalize();
+  }
+  return samples;
 }
 
 }  // namespace sdot

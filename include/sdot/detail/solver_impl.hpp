@@ -335,10 +335,16 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
     if (options.compute_transport_cost) {
       const auto cost_start = detail::Clock::now();
       Eigen::VectorXd costs = Eigen::VectorXd::Zero(n);
+      std::exception_ptr failure;  // as in evaluate(): exceptions cannot leave the OpenMP region
 #pragma omp parallel for schedule(dynamic, 256)
-      for (Eigen::Index i = 0; i < n; ++i)
-        if (!current.diagram.cells[i].empty())
-          costs[i] = density.integrate_cell(geometry, current.diagram.cells[i], sites[i], true).cost;
+      for (Eigen::Index i = 0; i < n; ++i) try {
+          if (!current.diagram.cells[i].empty())
+            costs[i] = density.integrate_cell(geometry, current.diagram.cells[i], sites[i], true).cost;
+        } catch (...) {
+#pragma omp critical
+          if (!failure) failure = std::current_exception();
+        }
+      if (failure) std::rethrow_exception(failure);
       summary.timings.assembly_s += detail::seconds_since(cost_start);
       result.transport_cost = costs.sum();
     }

@@ -4,7 +4,9 @@
 /// (power cells), clipped to a convex polygon source domain (default: the unit square).
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <span>
+#include <vector>
 #include <string_view>
 
 #include "sdot/chart_diagram.hpp"
@@ -34,6 +36,9 @@ class Plane {
   /// centroid and t ≤ 1 chosen so that all those points lie in the domain; every cell is
   /// non-empty, also for sites outside the domain.
   [[nodiscard]] Eigen::VectorXd default_weights(std::span<const Point> sites) const;
+  /// `count` points uniform in the domain, drawn from std::mt19937_64(seed) by rejection from its
+  /// bounding box (x before y): the sites of `sdot bench` and `python -m sdot.bench`.
+  [[nodiscard]] std::vector<Point> uniform_samples(std::size_t count, std::uint64_t seed) const;
   [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
   /// With `stop_at_empty_cell`, the builder may stop at the first empty cell (see the solver's
   /// line search) and leave the cells it has not built empty.

@@ -20,6 +20,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <memory>
+#include <cstdint>
 #include <span>
 #include <string_view>
 #include <vector>
@@ -74,6 +75,9 @@ class Sphere {
   void validate_sites(std::span<const Point> sites) const;
   /// h = 0 (Voronoi) on the whole sphere; on a cap or polygon, math.md §3 "S²-cap" heights
   /// whose cells are all non-empty (when every site lies in the open hemisphere around center()).
+  /// `count` points uniform on the whole sphere (normalised Gaussian triples from
+  /// std::mt19937_64(seed)): the sites of `sdot bench` and `python -m sdot.bench`.
+  [[nodiscard]] static std::vector<Point> uniform_samples(std::size_t count, std::uint64_t seed);
   [[nodiscard]] Eigen::VectorXd default_weights(std::span<const Point> sites) const;
   [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
   /// With `stop_at_empty_cell`, the builder may stop once it finds an empty cell and leave the

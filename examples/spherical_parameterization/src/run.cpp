@@ -1,0 +1,109 @@
+#include "run.hpp"
+
+#include <chrono>
+#include <utility>
+
+namespace sphparam {
+
+using json = nlohmann::json;
+
+json metrics_json(const Metrics& m) {
+  return {{"area_mean_abs", m.area_mean_abs},
+          {"area_std", m.area_std},
+          {"area_max_abs", m.area_max_abs},
+          {"area_nonfinite", m.area_nonfinite},
+          {"angle_mean_abs_deg", m.angle_mean_abs_deg},
+          {"angle_p95_deg", m.angle_p95_deg},
+          {"flips", m.flips},
+          {"sph_area_sum_over_4pi", m.sph_area_sum_over_4pi}};
+}
+
+RunResult run_parameterization(const Mesh& raw, const ReadInfo& info, PipelineOptions options,
+                               const std::vector<double>& vertex_factors, bool initial_metrics,
+                               const std::string& input_name) {
+  RunResult result;
+  json& report = result.report;
+  report["input"] = input_name;
+  const Validation v = validate(raw, info);
+  json defects = json::array();
+  for (const auto& d : v.defects) {
+    defects.push_back({{"defect", d.name}, {"count", d.count}, {"fatal", d.fatal}, {"message", d.message}});
+    if (d.fatal) result.errors.push_back(d.message);
+  }
+  report["input_statistics"] = {{"format", info.format},
+                                {"vertices_in_file", raw.vertices.size()},
+                                {"vertices", v.vertices},
+                                {"faces", v.faces},
+                                {"edges", v.edges},
+                                {"euler_characteristic", v.euler_characteristic},
+                                {"components", v.components},
+                                {"signed_volume", v.signed_volume},
+                                {"orientation", v.inward ? -1 : 1},
+                                {"min_angle_deg", v.min_angle_deg},
+                                {"area_ratio_max_min", v.area_ratio},
+                                {"defects", defects}};
+  if (!v.ok()) {
+    result.status = report["status"] = "invalid_input";
+    return result;
+  }
+  if (options.progress)
+    options.progress("read " + input_name + " (" + std::to_string(v.vertices) + " vertices, " +
+                     std::to_string(v.faces) + " faces)");
+  std::vector<int>& kept = result.kept;
+  const Mesh mesh = drop_unreferenced(raw, &kept);
+  if (!vertex_factors.empty()) {
+    options.vertex_factors.resize(kept.size());
+    for (std::size_t i = 0; i < kept.size(); ++i)
+      options.vertex_factors[i] = vertex_factors[static_cast<std::size_t>(kept[i])];
+  }
+  Mesh work = mesh;  // outward oriented
+  if (v.inward)
+    for (auto& f : work.faces) std::swap(f[1], f[2]);
+  const auto start = std::chrono::steady_clock::now();
+  const PipelineResult R = parameterize(work, options);
+  const double compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  result.output = mesh;
+  result.output.vertices = R.sphere;
+  for (auto& p : result.output.vertices) p.normalize();
+
+  const double sign = v.inward ? -1.0 : 1.0;
+  if (initial_metrics) result.initial = evaluate_map(mesh, R.initial, sign);
+  result.final_map = evaluate_map(mesh, R.sphere, sign);
+  result.status = report["status"] = result.final_map.flips == 0 ? "ok" : "flipped_faces";
+  json stages = json::array();
+  json times = json::object();
+  for (const auto& s : R.stages) {
+    stages.push_back({{"stage", s.name},
+                      {"seconds", s.seconds},
+                      {"target_area_mean_abs", s.area_mean_abs},
+                      {"flips", s.flips},
+                      {"note", s.note}});
+    times[s.name + "_s"] = times.value(s.name + "_s", 0.0) + s.seconds;  // summed over OT reruns
+  }
+  times["compute_s"] = compute_s;
+  report["times"] = times;
+  report["stages"] = stages;
+  report["ot"] = {{"status", R.ot.status},
+                  {"message", R.ot.message},
+                  {"newton_iterations", R.ot.iterations},
+                  {"max_relative_mass_error", R.ot.max_relative_error},
+                  {"rms_relative_mass_error", R.ot.rms_relative_error},
+                  {"diracs", R.ot.sites},
+                  {"refinement_levels", R.ot.refine},
+                  {"height_range", R.ot.height_range},
+                  {"error_history", R.ot.error_history}};
+  report["optimizer"] = {{"sweeps", R.optimizer.sweeps},
+                         {"energy_start", R.optimizer.energy_start},
+                         {"energy_end", R.optimizer.energy_end},
+                         {"untangle_remaining_flips", R.untangle_remaining}};
+  report["initial_map"] = metrics_json(result.initial);
+  report["final_map"] = metrics_json(result.final_map);
+  if (!options.vertex_factors.empty()) {
+    const auto targets = face_targets(work, options.vertex_factors);
+    report["final_map"]["target_area_mean_abs"] = target_area_error(work, R.sphere, targets);
+  }
+  return result;
+}
+
+}  // namespace sphparam

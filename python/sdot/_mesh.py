@@ -1,0 +1,97 @@
+"""Meshes: reading and writing (the readers of the sdot-sphere-param command) and the spherical
+parameterization (the same library code as the command)."""
+
+import json
+import os
+import sys
+import time
+
+from . import _sdot
+from ._solve import _float_array, _int_array
+
+
+def read_mesh(path):
+    """Reads a triangle mesh (OFF, OBJ, PLY ascii or binary, by extension).
+
+    Returns (vertices (n, 3) float64, faces (m, 3) int64); polygons are fan-triangulated.
+    Raises FileNotFoundError for a missing file and ValueError (naming the file and line) for a
+    malformed one."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise FileNotFoundError(f"{path}: no such file")
+    vertices, faces, _ = _sdot.read_mesh(path)
+    return vertices, faces
+
+
+def write_mesh(path, vertices, faces, *, ply_ascii=False):
+    """Writes a triangle mesh as OFF, OBJ or PLY (by extension; PLY binary unless `ply_ascii`),
+    with round-trip exact coordinates."""
+    vertices = _float_array(vertices, "vertices", ndim=2, columns=(3,))
+    faces = _int_array(faces, "faces")
+    _sdot.write_mesh(os.fspath(path), vertices, faces, bool(ply_ascii))
+
+
+def sphere_parameterization(
+    vertices,
+    faces,
+    *,
+    target_weights=None,
+    refine=0,
+    max_refine=1,
+    reweightings=40,
+    optimize=True,
+    ot_tolerance=0.05,
+    sweeps=200,
+    separation_threshold=5e-5,
+    separation_delta=0.1,
+    progress=False,
+):
+    """Maps a closed genus-0 triangle mesh onto the unit sphere, area-preserving and without
+    flipped faces (the pipeline of `sdot-sphere-param`; options as its flags).
+
+    Parameters
+    ----------
+    vertices : (n, 3) array; faces : (m, 3) integer array (either orientation, consistently).
+    target_weights : optional (n,) positive factors: the region around a vertex gets its mesh
+        area times the factor.
+    progress : print the stage lines on stderr, or a callable that receives each line.
+
+    Returns
+    -------
+    (sphere_vertices, report): an (n, 3) array of unit vectors, row i the image of vertex i (a
+    vertex that no face uses is projected radially from the vertex centroid), and the command's
+    report as a dict (input statistics, stage times, Newton iterations, distortion metrics), with
+    ``report["area_distortion"]`` holding the per-face log area ratios of the initial and final
+    maps (numpy arrays, for `sdot.plot.distortion_histogram`).
+
+    Raises ValueError naming the defects for a mesh that is not a closed genus-0 manifold.
+    """
+    vertices = _float_array(vertices, "vertices", ndim=2, columns=(3,))
+    faces = _int_array(faces, "faces")
+    if target_weights is not None:
+        target_weights = _float_array(target_weights, "target_weights", ndim=1)
+    options = {
+        "refine": int(refine),
+        "max_refine": int(max_refine),
+        "reweightings": int(reweightings),
+        "optimize": bool(optimize),
+        "ot_tolerance": float(ot_tolerance),
+        "sweeps": int(sweeps),
+        "separation_threshold": float(separation_threshold),
+        "separation_delta": float(separation_delta),
+    }
+    hook = None
+    if callable(progress):
+        hook = progress
+    elif progress:
+        start = time.monotonic()
+
+        def hook(line):
+            sys.stderr.write(f"[{time.monotonic() - start:8.3f} s] {line}\n")
+
+    sphere, report_json, initial_d, final_d = _sdot.sphere_parameterization(
+        vertices, faces, options, target_weights, hook
+    )
+    report = json.loads(report_json)
+    report["area_distortion"] = {"initial": initial_d, "final": final_d}
+    return sphere, report
