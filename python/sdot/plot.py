@@ -47,11 +47,10 @@ def _geodesic_samples(a, b, count, geometry):
     return p / np.sqrt(p[:, 2] ** 2 - p[:, 0] ** 2 - p[:, 1] ** 2)[:, None]
 
 
-def _mollweide(points):
-    """Equal-area Mollweide projection of unit vectors (x in [−2√2, 2√2], y in [−√2, √2])."""
-    longitude = np.arctan2(points[:, 1], points[:, 0])
-    latitude = np.arcsin(np.clip(points[:, 2], -1, 1))
-    theta = latitude.copy()
+def _mollweide_xy(longitude, latitude):
+    """Mollweide (equal-area) projection of longitudes and latitudes in radians: x in
+    [−2√2, 2√2] and y in [−√2, √2] for longitudes in [−π, π] (larger longitudes go beyond)."""
+    theta = np.array(latitude, dtype=float)
     target = np.pi * np.sin(latitude)
     for _ in range(50):
         f = 2 * theta + np.sin(2 * theta) - target
@@ -60,7 +59,34 @@ def _mollweide(points):
         theta -= step
         if np.all(np.abs(step) < 1e-12):
             break
-    return np.column_stack((2 * np.sqrt(2) / np.pi * longitude * np.cos(theta), np.sqrt(2) * np.sin(theta))), longitude
+    return np.column_stack((2 * np.sqrt(2) / np.pi * longitude * np.cos(theta), np.sqrt(2) * np.sin(theta)))
+
+
+def _mollweide(points):
+    """Mollweide projection of unit vectors, and their longitudes."""
+    longitude = np.arctan2(points[:, 1], points[:, 0])
+    latitude = np.arcsin(np.clip(points[:, 2], -1, 1))
+    return _mollweide_xy(longitude, latitude), longitude
+
+
+def _sphere_fill(curve):
+    """A cell's outline as projected polygons: longitudes unwrapped along the outline, a cell
+    around a pole closed along that pole's edge of the map, and copies shifted by ±2π for a cell
+    that crosses the ±180° meridian (the caller clips them to the map's ellipse)."""
+    longitude = np.unwrap(np.arctan2(curve[:, 1], curve[:, 0]))
+    latitude = np.arcsin(np.clip(curve[:, 2], -1, 1))
+    winding = np.unwrap(np.r_[longitude, np.arctan2(curve[0, 1], curve[0, 0])])[-1] - longitude[0]
+    if abs(winding) > np.pi:  # the cell contains a pole
+        pole = np.pi / 2 if curve[:, 2].mean() > 0 else -np.pi / 2
+        end = longitude[0] + winding
+        longitude = np.r_[longitude, end, end, longitude[0]]
+        latitude = np.r_[latitude, latitude[0], pole, pole]
+    polygons = []
+    for shift in (-2 * np.pi, 0.0, 2 * np.pi):
+        shifted = longitude + shift
+        if shifted.max() > -np.pi and shifted.min() < np.pi:
+            polygons.append(_mollweide_xy(shifted, latitude))
+    return polygons
 
 
 def _curved_cells(result, samples_per_edge):
@@ -134,17 +160,22 @@ def cells(result, ax=None, color_by=None, cmap="viridis", sites=True, centroids=
             if curve is None:
                 continue
             xy, longitude = _mollweide(np.vstack((curve, curve[:1])))
-            jumps = np.abs(np.diff(longitude)) > np.pi
             start = 0
-            for cut in np.flatnonzero(jumps):
+            for cut in np.flatnonzero(np.abs(np.diff(longitude)) > np.pi):
                 segments.append(xy[start : cut + 1])
                 start = cut + 1
             segments.append(xy[start:])
-            if colors is not None and not jumps.any():
-                fills.append(xy)
-                fill_colors.append(colors[i])
+            if colors is not None:
+                for polygon in _sphere_fill(curve):
+                    fills.append(polygon)
+                    fill_colors.append(colors[i])
         if fills:
-            ax.add_collection(PolyCollection(fills, facecolors=fill_colors, edgecolors="none"))
+            ellipse = plt.Polygon(np.column_stack((2 * np.sqrt(2) * np.cos(outline), np.sqrt(2) * np.sin(outline))),
+                                  transform=ax.transData, visible=False)
+            ax.add_patch(ellipse)
+            collection = PolyCollection(fills, facecolors=fill_colors, edgecolors="none")
+            ax.add_collection(collection)
+            collection.set_clip_path(ellipse)
         ax.add_collection(LineCollection(segments, colors=edgecolor, linewidths=linewidth))
         site_xy = _mollweide(result.sites / np.linalg.norm(result.sites, axis=1, keepdims=True))[0]
         centroid_xy = _mollweide(result.centroids / np.linalg.norm(result.centroids, axis=1, keepdims=True))[0]

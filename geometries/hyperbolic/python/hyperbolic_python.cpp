@@ -71,7 +71,9 @@ py::dict solve_hyperbolic(SolveRequest& request) {
 /// The benchmark domain of `sdot bench`: the regular octagon of circumradius 1.5 centred at
 /// distance 2 from the origin; sites uniform in hyperbolic area.
 py::dict bench_hyperbolic(std::size_t n, unsigned seed) {
-  const Hyperbolic geometry = Hyperbolic::regular_polygon(8, 1.5, Hyperbolic::polar(2, 0));
+  const auto octagon = Hyperbolic::regular_polygon(8, 1.5, Hyperbolic::polar(2, 0)).domain();
+  const std::vector<Eigen::VectorXd> vertices(octagon.begin(), octagon.end());
+  const Hyperbolic geometry = Hyperbolic::from_model(Model::hyperboloid, vertices);
   const auto sites = geometry.uniform_samples(n, seed);
   auto array = [](const std::vector<Point>& points) {
     py::array_t<double> a({static_cast<py::ssize_t>(points.size()), py::ssize_t{3}});
