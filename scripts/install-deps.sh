@@ -3,7 +3,9 @@
 set -euo pipefail
 packages=(cmake g++ make libeigen3-dev libboost-dev libqhull-dev libpng-dev libfmt-dev libgtest-dev libsuitesparse-dev
           libopenblas0-pthread
-          nlohmann-json3-dev python3-numpy)
+          nlohmann-json3-dev python3-numpy
+          pybind11-dev python3-dev python3-pytest python3-matplotlib python3-setuptools python3-wheel python3-pip
+          python3-venv)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
