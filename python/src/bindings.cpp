@@ -10,8 +10,8 @@ std::string shape_string(const py::array& array) {
 
 const double* checked_rows(const py::array_t<double>& array, const std::string& field, int dimension) {
   if (array.ndim() != 2 || array.shape(1) != dimension)
-    throw InputError(field, "must be an array of shape (n, " + std::to_string(dimension) + "), got shape " +
-                                shape_string(array));
+    throw InputError(
+        field, "must be an array of shape (n, " + std::to_string(dimension) + "), got shape " + shape_string(array));
   if (!(array.flags() & py::array::c_style)) throw InputError(field, "must be C-contiguous");
   return array.data();
 }

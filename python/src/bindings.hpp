@@ -92,8 +92,8 @@ class PythonFunction {
     const py::object returned = function_(x);
     const auto values = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(returned);
     if (!values || values.size() != m || (values.ndim() != 1 && !(values.ndim() == 2 && values.shape(1) == 1)))
-      throw InputError("density", "the function must return one number per point: called on " +
-                                      std::to_string(m) + " points, it returned " +
+      throw InputError("density", "the function must return one number per point: called on " + std::to_string(m) +
+                                      " points, it returned " +
                                       (values ? "an array of shape " + shape_string(values)
                                               : std::string(py::str(returned.get_type().attr("__name__")))));
     std::vector<double> result(values.data(), values.data() + m);
@@ -221,8 +221,8 @@ auto with_density(const G& geometry, const SolveRequest& request, ReadVertices&&
                                      read_quadrature_order(spec[5], "density.quadrature_order"))));
   }
   if (kind == "image")
-    return run(restrict(image(read_image_array(spec[1], "density"), spec[2], spec[3].cast<std::string>(),
-                              spec[4].cast<double>())));
+    return run(restrict(
+        image(read_image_array(spec[1], "density"), spec[2], spec[3].cast<std::string>(), spec[4].cast<double>())));
   if (kind != "function") throw InputError("density", "unknown density kind '" + kind + "'");
   const int order = read_quadrature_order(spec[2], "density.quadrature_order");
   const PythonFunction<Point> function(spec[1], dimension, std::move(coordinates));
@@ -250,7 +250,8 @@ template <class Point>
 py::array_t<double> points_array(const std::vector<const Point*>& points, const CoordinateView<Point>& view) {
   py::array_t<double> array({static_cast<py::ssize_t>(points.size()), static_cast<py::ssize_t>(view.dimension)});
   double* out = array.mutable_data();
-  for (std::size_t i = 0; i < points.size(); ++i) view.write(*points[i], out + i * static_cast<std::size_t>(view.dimension));
+  for (std::size_t i = 0; i < points.size(); ++i)
+    view.write(*points[i], out + i * static_cast<std::size_t>(view.dimension));
   return array;
 }
 

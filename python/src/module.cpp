@@ -36,8 +36,13 @@ py::dict solve(const std::string& geometry, py::array_t<double> sites, py::objec
                py::object domain, py::object density, py::dict extra, double tolerance, int max_iterations,
                const std::string& linear_solver, bool rescale_masses, py::object callback) {
   const GeometryBindings& bindings = find_geometry(geometry);
-  SolveRequest request{std::move(sites), std::move(masses), std::move(weights), std::move(domain),
-                       std::move(density), std::move(extra), {}};
+  SolveRequest request{std::move(sites),
+                       std::move(masses),
+                       std::move(weights),
+                       std::move(domain),
+                       std::move(density),
+                       std::move(extra),
+                       {}};
   sdot::Options& options = request.options;
   options.tolerance = tolerance;
   options.max_iterations = max_iterations;
@@ -214,10 +219,9 @@ PYBIND11_MODULE(_sdot, m) {
   m.def("solve", &solve, py::arg("geometry"), py::arg("sites"), py::arg("masses"), py::arg("weights"),
         py::arg("domain"), py::arg("density"), py::arg("extra"), py::arg("tolerance"), py::arg("max_iterations"),
         py::arg("linear_solver"), py::arg("rescale_masses"), py::arg("callback"));
-  m.def("bench_problem",
-        [](const std::string& geometry, std::size_t n, unsigned seed) {
-          return find_geometry(geometry).bench_problem(n, seed);
-        });
+  m.def("bench_problem", [](const std::string& geometry, std::size_t n, unsigned seed) {
+    return find_geometry(geometry).bench_problem(n, seed);
+  });
   m.def("sphere_parameterization", &sphere_parameterization);
   m.def("read_mesh", &read_mesh);
   m.def("write_mesh", &write_mesh);

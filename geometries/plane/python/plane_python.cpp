@@ -66,8 +66,7 @@ py::dict solve_plane(SolveRequest& request) {
                                                        out[1] = p.y();
                                                      }}};
   return with_density(
-      plane, request,
-      [](const py::array_t<double>& array, const std::string& field) { return ring(array, field); },
+      plane, request, [](const py::array_t<double>& array, const std::string& field) { return ring(array, field); },
       [&](const GrayImage& image, const py::handle& extent, const std::string& interpolation, double scale) {
         Eigen::AlignedBox2d rectangle;
         for (const auto& v : plane.domain().vertices()) rectangle.extend(v);
@@ -77,8 +76,8 @@ py::dict solve_plane(SolveRequest& request) {
           rectangle = Eigen::AlignedBox2d(Point(e[0], e[1]), Point(e[2], e[3]));
         }
         if (!interpolation.empty() && interpolation != "bilinear" && interpolation != "constant")
-          throw InputError("interpolation", "must be \"bilinear\" or \"constant\" on the plane, got \"" +
-                                                interpolation + "\"");
+          throw InputError("interpolation",
+                           "must be \"bilinear\" or \"constant\" on the plane, got \"" + interpolation + "\"");
         return image_density(plane, image, rectangle,
                              interpolation == "constant" ? ImageInterpolation::constant : ImageInterpolation::bilinear,
                              scale);

@@ -156,7 +156,8 @@ std::vector<Plane::Point> Plane::uniform_samples(std::size_t count, std::uint64_
   samples.reserve(count);
   while (samples.size() < count) {
     const double x = uniform(random), y = uniform(random);
-    const Point p(box.min().x() + (box.max().x() - box.min().x()) * x, box.min().y() + (box.max().y() - box.min().y()) * y);
+    const Point p(box.min().x() + (box.max().x() - box.min().x()) * x,
+                  box.min().y() + (box.max().y() - box.min().y()) * y);
     if (domain_.contains(p)) samples.push_back(p);
   }
   return samples;

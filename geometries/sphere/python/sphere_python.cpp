@@ -53,13 +53,14 @@ py::dict solve_sphere(SolveRequest& request) {
                                                        out[2] = p.z();
                                                      }}};
   return with_density(
-      sphere, request, [](const py::array_t<double>& array, const std::string& field) { return directions(array, field); },
+      sphere, request,
+      [](const py::array_t<double>& array, const std::string& field) { return directions(array, field); },
       [&](const GrayImage& image, const py::handle& extent, const std::string& interpolation, double scale) {
         if (!extent.is_none())
           throw InputError("extent", "the sphere's image is a longitude-latitude map of the whole sphere");
         if (!interpolation.empty() && interpolation != "linear" && interpolation != "constant")
-          throw InputError("interpolation", "must be \"linear\" or \"constant\" on the sphere, got \"" + interpolation +
-                                                "\"");
+          throw InputError("interpolation",
+                           "must be \"linear\" or \"constant\" on the sphere, got \"" + interpolation + "\"");
         return equirectangular_density(
             sphere, image, interpolation == "constant" ? ImageInterpolation::constant : ImageInterpolation::linear,
             scale);

@@ -6,8 +6,8 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <span>
-#include <vector>
 #include <string_view>
+#include <vector>
 
 #include "sdot/chart_diagram.hpp"
 #include "sdot/density.hpp"

@@ -19,8 +19,8 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
-#include <memory>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string_view>
 #include <vector>
