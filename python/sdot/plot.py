@@ -104,6 +104,12 @@ def _curved_cells(result, samples_per_edge):
     return curves
 
 
+def _add_cells(ax, polygons, keep, colors, edgecolor, linewidth):
+    """The non-empty cells `polygons` (cells `keep`), filled with their colours when given."""
+    facecolors = colors[keep] if colors is not None else "none"
+    ax.add_collection(PolyCollection(polygons, facecolors=facecolors, edgecolors=edgecolor, linewidths=linewidth))
+
+
 def cells(result, ax=None, color_by=None, cmap="viridis", sites=True, centroids=False, edgecolor="#3060a0",
           linewidth=None, samples_per_edge=12):
     """Draws the Laguerre cells of a `SolveResult` and returns the axes.
@@ -124,16 +130,8 @@ def cells(result, ax=None, color_by=None, cmap="viridis", sites=True, centroids=
     dot = float(np.clip(400.0 / max(n, 1), 0.5, 20.0))
 
     if result.geometry == "plane":
-        polygons = [c for c in result.cells if len(c) >= 3]
         keep = [i for i, c in enumerate(result.cells) if len(c) >= 3]
-        ax.add_collection(
-            PolyCollection(
-                polygons,
-                facecolors=colors[keep] if colors is not None else "none",
-                edgecolors=edgecolor,
-                linewidths=linewidth,
-            )
-        )
+        _add_cells(ax, [result.cells[i] for i in keep], keep, colors, edgecolor, linewidth)
         site_xy, centroid_xy = result.sites, result.centroids
     elif result.geometry == "hyperbolic":
         disk = plt.Circle((0, 0), 1, fill=False, color="black", linewidth=1.0)
@@ -143,14 +141,7 @@ def cells(result, ax=None, color_by=None, cmap="viridis", sites=True, centroids=
             if curve is not None:
                 polygons.append(curve[:, :2] / (1 + curve[:, 2:3]))
                 keep.append(i)
-        ax.add_collection(
-            PolyCollection(
-                polygons,
-                facecolors=colors[keep] if colors is not None else "none",
-                edgecolors=edgecolor,
-                linewidths=linewidth,
-            )
-        )
+        _add_cells(ax, polygons, keep, colors, edgecolor, linewidth)
         site_xy, centroid_xy = _sites_in_poincare(result), result.centroids_poincare
     else:
         outline = np.linspace(0, 2 * np.pi, 200)

@@ -255,6 +255,14 @@ py::array_t<double> points_array(const std::vector<const Point*>& points, const 
   return array;
 }
 
+template <class Point>
+py::array_t<double> points_array(const std::vector<Point>& points, const CoordinateView<Point>& view) {
+  std::vector<const Point*> pointers;
+  pointers.reserve(points.size());
+  for (const auto& p : points) pointers.push_back(&p);
+  return points_array(pointers, view);
+}
+
 py::array_t<double> vector_array(const Eigen::VectorXd& v);
 
 /// The fields of a Result: weights, masses, target_masses, centroids*, transport_cost, status,

@@ -75,14 +75,11 @@ py::dict bench_hyperbolic(std::size_t n, unsigned seed) {
   const std::vector<Eigen::VectorXd> vertices(octagon.begin(), octagon.end());
   const Hyperbolic geometry = Hyperbolic::from_model(Model::hyperboloid, vertices);
   const auto sites = geometry.uniform_samples(n, seed);
-  auto array = [](const std::vector<Point>& points) {
-    py::array_t<double> a({static_cast<py::ssize_t>(points.size()), py::ssize_t{3}});
-    for (std::size_t i = 0; i < points.size(); ++i) write_in(Model::hyperboloid, points[i], a.mutable_data() + 3 * i);
-    return a;
-  };
+  const CoordinateView<Point> hyperboloid{"", 3,
+                                          [](const Point& x, double* out) { write_in(Model::hyperboloid, x, out); }};
   py::dict problem;
-  problem["sites"] = array(sites);
-  problem["domain"] = array(geometry.domain());
+  problem["sites"] = points_array(sites, hyperboloid);
+  problem["domain"] = points_array(geometry.domain(), hyperboloid);
   problem["model"] = "hyperboloid";
   problem["geometry"] = "hyperbolic";
   return problem;

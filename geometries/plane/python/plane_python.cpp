@@ -17,6 +17,10 @@ std::vector<Point> ring(const py::handle& value, const std::string& field) {
                             [](const double* row, std::size_t) { return Point(row[0], row[1]); });
 }
 
+CoordinateView<Point> coordinates() {
+  return {"", 2, [](const Point& p, double* out) { out[0] = p.x(), out[1] = p.y(); }};
+}
+
 /// The domain: None (unit square), ("polygon", vertices) or ("region", [(outer, [holes]), ...]).
 /// A polygon that is convex becomes the plane's domain; any other polygon or region is handled
 /// as the bounding box with the density restricted to the region (as the sdot command does).
@@ -61,10 +65,7 @@ py::dict solve_plane(SolveRequest& request) {
   const Plane& plane = domain.plane;
   static const std::vector<std::vector<Point>> none;
   const auto& pieces = domain.region ? domain.region->convex_pieces() : none;
-  const std::vector<CoordinateView<Point>> views = {{"", 2, [](const Point& p, double* out) {
-                                                       out[0] = p.x();
-                                                       out[1] = p.y();
-                                                     }}};
+  const std::vector<CoordinateView<Point>> views = {coordinates()};
   return with_density(
       plane, request, [](const py::array_t<double>& array, const std::string& field) { return ring(array, field); },
       [&](const GrayImage& image, const py::handle& extent, const std::string& interpolation, double scale) {
@@ -88,10 +89,8 @@ py::dict solve_plane(SolveRequest& request) {
 
 py::dict bench_plane(std::size_t n, unsigned seed) {
   const auto sites = Plane().uniform_samples(n, seed);
-  py::array_t<double> array({static_cast<py::ssize_t>(n), py::ssize_t{2}});
-  for (std::size_t i = 0; i < n; ++i) array.mutable_at(i, 0) = sites[i].x(), array.mutable_at(i, 1) = sites[i].y();
   py::dict problem;
-  problem["sites"] = array;
+  problem["sites"] = points_array(sites, coordinates());
   problem["geometry"] = "plane";
   return problem;
 }

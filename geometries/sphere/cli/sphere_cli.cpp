@@ -153,15 +153,8 @@ SolveOutput solve_sphere(const json& problem, const RunContext& context) {
   if (sites.empty()) throw InputError("sites", "at least one site is needed");
   Sphere sphere = read_domain(problem);
   if (problem.contains("builder")) {
-    const auto& builder = problem["builder"];
-    if (builder == "automatic")
-      sphere.set_builder(Sphere::Builder::automatic);
-    else if (builder == "clipping")
-      sphere.set_builder(Sphere::Builder::clipping);
-    else if (builder == "hull")
-      sphere.set_builder(Sphere::Builder::hull);
-    else
-      throw InputError("builder", "must be \"automatic\", \"clipping\" or \"hull\"");
+    if (!problem["builder"].is_string()) throw InputError("builder", "must be \"automatic\", \"clipping\" or \"hull\"");
+    sphere.set_builder(Sphere::builder_from_name(problem["builder"].get<std::string>()));
   }
   const auto density = read_density(
       sphere, problem, context,

@@ -19,6 +19,11 @@ std::vector<Point> directions(const py::handle& value, const std::string& field)
   });
 }
 
+/// Unit vectors as they are.
+CoordinateView<Point> coordinates() {
+  return {"", 3, [](const Point& p, double* out) { out[0] = p.x(), out[1] = p.y(), out[2] = p.z(); }};
+}
+
 /// None (the whole sphere), ("cap", center, angle) or ("polygon", vertices).
 Sphere read_domain(const py::object& domain) {
   if (domain.is_none()) return Sphere();
@@ -36,22 +41,9 @@ py::dict solve_sphere(SolveRequest& request) {
   std::vector<Point> storage;
   const auto sites = view_points<Point>(request.sites, "sites", storage);
   Sphere sphere = read_domain(request.domain);
-  if (request.extra.contains("builder")) {
-    const auto builder = request.extra["builder"].cast<std::string>();
-    if (builder == "automatic")
-      sphere.set_builder(Sphere::Builder::automatic);
-    else if (builder == "clipping")
-      sphere.set_builder(Sphere::Builder::clipping);
-    else if (builder == "hull")
-      sphere.set_builder(Sphere::Builder::hull);
-    else
-      throw InputError("builder", "must be \"automatic\", \"clipping\" or \"hull\", got \"" + builder + "\"");
-  }
-  const std::vector<CoordinateView<Point>> views = {{"", 3, [](const Point& p, double* out) {
-                                                       out[0] = p.x();
-                                                       out[1] = p.y();
-                                                       out[2] = p.z();
-                                                     }}};
+  if (request.extra.contains("builder"))
+    sphere.set_builder(Sphere::builder_from_name(request.extra["builder"].cast<std::string>()));
+  const std::vector<CoordinateView<Point>> views = {coordinates()};
   return with_density(
       sphere, request,
       [](const py::array_t<double>& array, const std::string& field) { return directions(array, field); },
@@ -71,11 +63,8 @@ py::dict solve_sphere(SolveRequest& request) {
 
 py::dict bench_sphere(std::size_t n, unsigned seed) {
   const auto sites = Sphere::uniform_samples(n, seed);
-  py::array_t<double> array({static_cast<py::ssize_t>(n), py::ssize_t{3}});
-  for (std::size_t i = 0; i < n; ++i)
-    for (int d = 0; d < 3; ++d) array.mutable_at(i, d) = sites[i][d];
   py::dict problem;
-  problem["sites"] = array;
+  problem["sites"] = points_array(sites, coordinates());
   problem["geometry"] = "sphere";
   return problem;
 }

@@ -903,4 +903,11 @@ std::vector<Sphere::Point> Sphere::uniform_samples(std::size_t count, std::uint6
   return samples;
 }
 
+Sphere::Builder Sphere::builder_from_name(std::string_view name) {
+  if (name == "automatic") return Builder::automatic;
+  if (name == "clipping") return Builder::clipping;
+  if (name == "hull") return Builder::hull;
+  throw InputError("builder", "must be \"automatic\", \"clipping\" or \"hull\", got \"" + std::string(name) + "\"");
+}
+
 }  // namespace sdot

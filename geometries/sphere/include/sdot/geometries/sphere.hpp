@@ -65,6 +65,8 @@ class Sphere {
   [[nodiscard]] double domain_area() const;
 
   void set_builder(Builder builder) { builder_ = builder; }
+  /// The builder named "automatic", "clipping" or "hull"; InputError (field `builder`) otherwise.
+  static Builder builder_from_name(std::string_view name);
   [[nodiscard]] Builder builder() const { return builder_; }
 
   /// −ln⟨x, y⟩ for unit vectors (+∞ when ⟨x, y⟩ ≤ 0); accurate for nearby points.
