@@ -6,7 +6,7 @@ install(TARGETS sdot EXPORT sdotTargets
   RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(EXPORT sdotTargets NAMESPACE sdot:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/sdot)
-# A static libsdot carries its private dependencies (Qhull, libpng) into consumers' link lines.
+# A static libsdot carries its private dependencies (Qhull, libpng, CGAL) into consumers' link lines.
 get_target_property(_sdot_type sdot TYPE)
 if(_sdot_type STREQUAL "STATIC_LIBRARY")
   set(SDOT_STATIC_LIBRARY ON)

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs the Debian packages sdot needs, when missing (sudo only when not root).
 set -euo pipefail
-packages=(cmake g++ make libeigen3-dev libboost-dev libqhull-dev libpng-dev libfmt-dev libgtest-dev libsuitesparse-dev
+packages=(cmake g++ make libeigen3-dev libboost-dev libqhull-dev libcgal-dev libpng-dev libfmt-dev libgtest-dev libsuitesparse-dev
           libopenblas0-pthread
           nlohmann-json3-dev python3-numpy
           pybind11-dev python3-dev python3-pytest python3-matplotlib python3-setuptools python3-wheel python3-pip

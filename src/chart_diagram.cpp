@@ -13,6 +13,10 @@
 
 #include "sdot/error.hpp"
 
+#ifdef SDOT_HAVE_CGAL
+#include "regular_triangulation.hpp"
+#endif
+
 extern "C" {
 #include <libqhull_r/qhull_ra.h>
 }
@@ -449,9 +453,70 @@ class PowerTree {
 
 }  // namespace
 
+bool has_regular_triangulation() {
+#ifdef SDOT_HAVE_CGAL
+  return true;
+#else
+  return false;
+#endif
+}
+
+namespace {
+
+/// Cell i = the domain clipped by its Laguerre neighbours, in coordinates u = v − c_i (see below).
+void clip_cell(ChartCell& cell, std::size_t i, std::span<const int> neighbors, std::span<const Vec2> centers,
+               std::span<const double> power_weight, const std::vector<Vec2>& boundary) {
+  const Vec2 center = centers[i];
+  cell.vertices.resize(boundary.size());
+  cell.neighbors.resize(boundary.size());
+  for (std::size_t k = 0; k < boundary.size(); ++k) {
+    cell.vertices[k] = boundary[k] - center;
+    cell.neighbors[k] = boundary_label(static_cast<int>(k));
+  }
+  for (int j : neighbors) {
+    const Vec2 d = centers[static_cast<std::size_t>(j)] - center;
+    clip(cell, -2 * d, d.squaredNorm() + power_weight[i] - power_weight[static_cast<std::size_t>(j)], j);
+    if (cell.vertices.empty()) return;
+  }
+  for (auto& u : cell.vertices) u += center;
+}
+
+#ifdef SDOT_HAVE_CGAL
+std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> centers,
+                                                      std::span<const double> power_weight, const ConvexPolygon& domain,
+                                                      bool stop_at_empty_cell) {
+  const std::size_t n = centers.size();
+  std::vector<ChartCell> cells(n);
+  const auto triangulation = detail::regular_triangulation(centers, power_weight);
+  // A hidden site has an empty cell: a line search rejects the step without the other cells.
+  if (stop_at_empty_cell &&
+      std::find(triangulation.is_vertex.begin(), triangulation.is_vertex.end(), 0) != triangulation.is_vertex.end())
+    return cells;
+  std::atomic<bool> found_empty{false};
+  // In insertion (Hilbert) order: neighbouring cells share their neighbours' data in cache.
+  const auto& order = triangulation.order;
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::size_t position = 0; position < order.size(); ++position) {
+    if (stop_at_empty_cell && found_empty.load(std::memory_order_relaxed)) continue;
+    const auto i = static_cast<std::size_t>(order[position]);
+    clip_cell(cells[i], i, triangulation.neighbors.of(i), centers, power_weight, domain.vertices());
+    if (cells[i].vertices.empty()) found_empty.store(true, std::memory_order_relaxed);
+  }
+  return cells;
+}
+#endif
+
+}  // namespace
+
 std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weight,
                                            const ConvexPolygon& domain, std::span<const Vec2> anchors,
-                                           bool stop_at_empty_cell) {
+                                           bool stop_at_empty_cell, PowerDiagramMethod method) {
+  if (method == PowerDiagramMethod::regular_triangulation && !has_regular_triangulation())
+    throw InputError("method", "this build of sdot has no regular triangulation (configure with SDOT_WITH_CGAL=ON)");
+#ifdef SDOT_HAVE_CGAL
+  if (method != PowerDiagramMethod::kd_tree)
+    return power_diagram_by_triangulation(centers, power_weight, domain, stop_at_empty_cell);
+#endif
   // Each cell starts as the domain clipped by the sites of the nearest centres; then, while some
   // site j is strictly below the envelope at a vertex v of the cell (pow_j(v) < pow_i(v)), the
   // cell is clipped by it. A kd-tree holding the largest w per node finds such j exactly
@@ -527,7 +592,8 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
 }
 
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,
-                                           std::span<const Vec2> anchors, bool stop_at_empty_cell) {
+                                           std::span<const Vec2> anchors, bool stop_at_empty_cell,
+                                           PowerDiagramMethod method) {
   // Maximising f_i is minimising pow_i(v) = |v|² − 2 f_i(v) = |v − c_i|² − w_i, with
   // c_i = a_i.xy and w_i = 2 a_i.z + |c_i|².
   std::vector<Vec2> centers(dual.size());
@@ -536,7 +602,7 @@ std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const Con
     centers[i] = dual[i].head<2>();
     power_weight[i] = 2 * dual[i].z() + centers[i].squaredNorm();
   }
-  return build_power_diagram(centers, power_weight, domain, anchors, stop_at_empty_cell);
+  return build_power_diagram(centers, power_weight, domain, anchors, stop_at_empty_cell, method);
 }
 
 Hull3 convex_hull_3d(std::span<const Vec3> points, bool with_surface) {

@@ -5,8 +5,10 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <string>
 
 #include "sdot/chart_diagram.hpp"
+#include "sdot/error.hpp"
 
 namespace sdot {
 namespace {
@@ -91,6 +93,159 @@ TEST(ChartDiagram, CollinearAndSingleSites) {
   // Voronoi strips of the points 0, 0.1, …, 0.9 on the x axis, cut to [0, 1].
   for (int i = 0; i < 10; ++i)
     EXPECT_NEAR(area(cells[i]), (i == 9 ? 1.0 : 0.1 * i + 0.05) - std::max(0.0, 0.1 * i - 0.05), 1e-13);
+}
+
+// ---------------------------------------------------------------- both power-diagram builders
+std::vector<PowerDiagramMethod> builders() {
+  std::vector<PowerDiagramMethod> methods{PowerDiagramMethod::kd_tree};
+  if (has_regular_triangulation()) methods.push_back(PowerDiagramMethod::regular_triangulation);
+  return methods;
+}
+
+const char* name(PowerDiagramMethod method) {
+  return method == PowerDiagramMethod::kd_tree ? "kd-tree" : "regular triangulation";
+}
+
+std::vector<Vec3> dual_of(std::span<const Vec2> centers, std::span<const double> weights) {
+  std::vector<Vec3> dual(centers.size());
+  for (std::size_t i = 0; i < centers.size(); ++i)
+    dual[i] = Vec3(centers[i].x(), centers[i].y(), (weights[i] - centers[i].squaredNorm()) / 2);
+  return dual;
+}
+
+/// The neighbours across edges longer than `length` (degenerate inputs give zero-length edges,
+/// which either builder may or may not report).
+std::vector<int> long_edge_neighbors(const ChartCell& cell, double length = 1e-9) {
+  std::vector<int> result;
+  for (std::size_t k = 0; k < cell.size(); ++k)
+    if (cell.neighbors[k] >= 0 && (cell.vertices[(k + 1) % cell.size()] - cell.vertices[k]).norm() > length)
+      result.push_back(cell.neighbors[k]);
+  std::sort(result.begin(), result.end());
+  return result;
+}
+
+/// Every builder against brute force: areas to `tolerance`, and the same neighbours.
+void expect_builders_exact(std::span<const Vec2> centers, std::span<const double> weights, const ConvexPolygon& domain,
+                           double tolerance, const std::string& what) {
+  const auto dual = dual_of(centers, weights);
+  const auto slow = brute_force(dual, domain);
+  for (const auto method : builders()) {
+    const auto cells = build_power_diagram(centers, weights, domain, {}, false, method);
+    ASSERT_EQ(cells.size(), centers.size());
+    double total = 0;
+    for (std::size_t i = 0; i < centers.size(); ++i) {
+      EXPECT_NEAR(area(cells[i]), area(slow[i]), tolerance) << what << ", " << name(method) << ", cell " << i;
+      EXPECT_EQ(long_edge_neighbors(cells[i]), long_edge_neighbors(slow[i]))
+          << what << ", " << name(method) << ", cell " << i;
+      total += area(cells[i]);
+    }
+    EXPECT_NEAR(total, domain.area(), 1e-12) << what << ", " << name(method);
+  }
+}
+
+TEST(PowerDiagram, BuildersMatchBruteForceOnRandomInput) {
+  std::mt19937_64 random(7);
+  std::uniform_real_distribution<double> uniform(-1.2, 1.2);
+  const ConvexPolygon domain({{-1, -1}, {1, -1}, {1.2, 0.5}, {0, 1}, {-1, 0.6}});
+  for (int trial = 0; trial < 12; ++trial) {
+    const std::size_t n = 2 + static_cast<std::size_t>(trial * 41);
+    std::vector<Vec2> centers(n);
+    std::vector<double> weights(n);
+    for (auto& c : centers) c = Vec2(uniform(random), uniform(random));
+    for (auto& w : weights) w = 0.05 * uniform(random);  // some sites hidden, some cells outside
+    expect_builders_exact(centers, weights, domain, 1e-13, "trial " + std::to_string(trial));
+  }
+}
+
+TEST(PowerDiagram, ExactlyDegenerateInputs) {
+  const auto square = ConvexPolygon::rectangle(0, 0, 1, 1);
+  {  // a grid with equal weights: four cocircular sites around every cell corner
+    const int k = 16;
+    std::vector<Vec2> centers;
+    for (int i = 0; i < k; ++i)
+      for (int j = 0; j < k; ++j) centers.emplace_back((i + 0.5) / k, (j + 0.5) / k);
+    const std::vector<double> weights(centers.size(), 0.0);
+    expect_builders_exact(centers, weights, square, 1e-15, "grid");
+    for (const auto method : builders()) {
+      const auto cells = build_power_diagram(centers, weights, square, {}, false, method);
+      for (std::size_t i = 0; i < cells.size(); ++i) EXPECT_NEAR(area(cells[i]), 1.0 / (k * k), 1e-15) << name(method);
+    }
+  }
+  {  // sites on a circle, all cells meeting at its centre (a vertex of degree 4, then 8)
+    const auto box = ConvexPolygon::rectangle(-1, -1, 1, 1);
+    std::vector<Vec2> four{{1, 0}, {0, 1}, {-1, 0}, {0, -1}};
+    expect_builders_exact(four, std::vector<double>(4, 0.3), box, 1e-15, "four cocircular");
+    std::vector<Vec2> eight;
+    for (int k = 0; k < 8; ++k) eight.emplace_back(0.5 * std::cos(k * M_PI / 4), 0.5 * std::sin(k * M_PI / 4));
+    expect_builders_exact(eight, std::vector<double>(8, 0.0), box, 1e-14, "eight cocircular");
+    for (const auto method : builders()) {  // the square's symmetries: two areas, 4 − 2√2 and 2√2 − 2 halved
+      const auto cells = build_power_diagram(eight, std::vector<double>(8, 0.0), box, {}, false, method);
+      for (std::size_t k = 0; k < 8; ++k)
+        EXPECT_NEAR(area(cells[k]), k % 2 == 0 ? std::sqrt(2.0) - 1 : 2 - std::sqrt(2.0), 1e-14) << name(method);
+    }
+  }
+  {  // equal centres with different weights: the lower weight's cell is empty
+    std::vector<Vec2> centers{{0.3, 0.3}, {0.3, 0.3}, {0.7, 0.6}};
+    std::vector<double> weights{0.01, 0.02, 0.0};
+    expect_builders_exact(centers, weights, square, 1e-15, "equal centres");
+    for (const auto method : builders())
+      EXPECT_TRUE(build_power_diagram(centers, weights, square, {}, false, method)[0].empty()) << name(method);
+  }
+  {  // collinear sites with weights, and sites on the domain's corners and edges
+    std::vector<Vec2> line;
+    std::vector<double> weights;
+    for (int i = 0; i < 12; ++i) line.emplace_back(0.1 * i - 0.05, 0.25), weights.push_back(0.002 * (i % 3));
+    expect_builders_exact(line, weights, square, 1e-15, "collinear");
+    std::vector<Vec2> boundary{{0, 0}, {1, 0}, {1, 1}, {0, 1}, {0.5, 0}, {1, 0.5}, {0.5, 1}, {0, 0.5}, {0.5, 0.5}};
+    expect_builders_exact(boundary, std::vector<double>(boundary.size(), 0.0), square, 1e-15, "on the boundary");
+  }
+  {  // one site alone, and a site hidden by its neighbours' weights
+    std::vector<Vec2> one{{5, 5}};
+    expect_builders_exact(one, std::vector<double>{0.0}, square, 1e-15, "one site");
+    std::vector<Vec2> hidden{{0.2, 0.5}, {0.5, 0.5}, {0.8, 0.5}};
+    expect_builders_exact(hidden, std::vector<double>{0.2, -0.2, 0.2}, square, 1e-15, "hidden");
+    for (const auto method : builders())
+      EXPECT_TRUE(
+          build_power_diagram(hidden, std::vector<double>{0.2, -0.2, 0.2}, square, {}, false, method)[1].empty());
+  }
+}
+
+TEST(PowerDiagram, SameCellsToTheLastBitAtEveryRun) {
+  // The triangulation's storage order follows memory addresses; the cells must not.
+  std::mt19937_64 random(11);
+  std::uniform_real_distribution<double> uniform(0, 1);
+  std::vector<Vec2> centers(2000);
+  std::vector<double> weights(centers.size());
+  for (auto& c : centers) c = Vec2(uniform(random), uniform(random));
+  for (auto& w : weights) w = 1e-4 * uniform(random);
+  const auto square = ConvexPolygon::rectangle(0, 0, 1, 1);
+  for (const auto method : builders()) {
+    const auto first = build_power_diagram(centers, weights, square, {}, false, method);
+    std::vector<std::vector<double>> noise;  // other heap addresses for the next runs
+    for (int run = 0; run < 4; ++run) {
+      noise.emplace_back(static_cast<std::size_t>(1000 + 7919 * run), 1.0);
+      const auto again = build_power_diagram(centers, weights, square, {}, false, method);
+      for (std::size_t i = 0; i < centers.size(); ++i) {
+        ASSERT_EQ(again[i].vertices, first[i].vertices) << name(method) << ", run " << run << ", cell " << i;
+        ASSERT_EQ(again[i].neighbors, first[i].neighbors) << name(method) << ", run " << run << ", cell " << i;
+      }
+    }
+  }
+}
+
+TEST(PowerDiagram, RegularTriangulationOnlyWhenBuilt) {
+  std::vector<Vec2> centers{{0.2, 0.2}, {0.8, 0.8}};
+  std::vector<double> weights{0, 0};
+  const auto square = ConvexPolygon::rectangle(0, 0, 1, 1);
+  if (has_regular_triangulation()) {
+    EXPECT_NEAR(
+        area(build_power_diagram(centers, weights, square, {}, false, PowerDiagramMethod::regular_triangulation)[0]),
+        0.5, 1e-15);
+  } else {
+    EXPECT_THROW(
+        (void)build_power_diagram(centers, weights, square, {}, false, PowerDiagramMethod::regular_triangulation),
+        InputError);
+  }
 }
 
 TEST(ChartDiagram, ClipKeepsLabels) {

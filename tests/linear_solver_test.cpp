@@ -1,6 +1,7 @@
 // The linear solvers: the automatic solver's multigrid path, its fallback, and its direct path
 // (LDLᵀ → CHOLMOD trial) through pattern changes; the multigrid solver on its own.
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <cmath>
 #include <limits>
@@ -159,6 +160,72 @@ TEST(Multigrid, ReportsBadMatricesAndTheIterationLimit) {
   const Eigen::VectorXd wrong_size = Eigen::VectorXd::Ones(5);
   (void)multigrid.solve(wrong_size);
   EXPECT_EQ(multigrid.info(), Eigen::InvalidInput);
+}
+
+TEST(Multigrid, ReusesItsHierarchyForTheNextNewtonMatrix) {
+  const sdot::SparseMatrix first = weighted_laplacian(120, 1);
+  const Eigen::VectorXd rhs = zero_sum_rhs(first.rows(), 2);
+  sdot::MultigridSolver multigrid;
+  multigrid.setTolerance(1e-10);
+  multigrid.compute(first);
+  (void)multigrid.solve(rhs);
+  ASSERT_EQ(multigrid.info(), Eigen::Success);
+  const int fresh_iterations = multigrid.iterations();
+  // The next Newton matrix: the same graph, weights a few percent off. The coarse levels stay.
+  sdot::SparseMatrix next = first;
+  std::mt19937 random(3);
+  std::uniform_real_distribution<double> factor(0.95, 1.05);
+  for (int c = 0; c < next.outerSize(); ++c)
+    for (sdot::SparseMatrix::InnerIterator it(next, c); it; ++it)
+      if (it.row() < it.col()) {
+        const double f = factor(random), w = -it.value();
+        next.coeffRef(it.row(), it.col()) = next.coeffRef(it.col(), it.row()) = -f * w;
+        next.coeffRef(it.row(), it.row()) += (f - 1) * w;
+        next.coeffRef(it.col(), it.col()) += (f - 1) * w;
+      }
+  next.makeCompressed();
+  multigrid.compute(next);
+  Eigen::VectorXd x = multigrid.solve(rhs);
+  ASSERT_EQ(multigrid.info(), Eigen::Success);
+  EXPECT_EQ(multigrid.builds(), 1);
+  EXPECT_LE((rhs - next * x).norm(), 1e-10 * rhs.norm());
+  EXPECT_LE(multigrid.iterations(), fresh_iterations + 5);
+  // A matrix of the same size but another graph and other weights: the old levels fail or
+  // converge slowly, the hierarchy is rebuilt, and the answer is still right.
+  const sdot::SparseMatrix other = weighted_laplacian(120, 99) + 10 * first;
+  for (int round = 0; round < 3; ++round) {
+    multigrid.compute(other);
+    x = multigrid.solve(rhs);
+    ASSERT_EQ(multigrid.info(), Eigen::Success) << round;
+    EXPECT_LE((rhs - other * x).norm(), 1e-10 * rhs.norm()) << round;
+  }
+  // Without reuse every compute builds.
+  sdot::MultigridSolver::Settings settings;
+  settings.reuse_hierarchy = false;
+  sdot::MultigridSolver fresh(settings);
+  fresh.compute(first);
+  fresh.compute(next);
+  EXPECT_EQ(fresh.builds(), 2);
+}
+
+TEST(Multigrid, SameSolutionWhateverTheThreadCount) {
+  // The smoother's blocks and the parallel products are fixed by the matrix, not by the threads.
+  const sdot::SparseMatrix matrix = weighted_laplacian(120, 4);  // 14,400 rows: several blocks
+  const Eigen::VectorXd rhs = zero_sum_rhs(matrix.rows(), 5);
+  auto solve_with_threads = [&](int threads) {
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(threads);
+    sdot::MultigridSolver multigrid;
+    multigrid.setTolerance(1e-10);
+    multigrid.compute(matrix);
+    Eigen::VectorXd x = multigrid.solve(rhs);
+    EXPECT_EQ(multigrid.info(), Eigen::Success);
+    omp_set_num_threads(saved);
+    return x;
+  };
+  const Eigen::VectorXd one = solve_with_threads(1), two = solve_with_threads(2), three = solve_with_threads(3);
+  EXPECT_EQ(one, two);
+  EXPECT_EQ(one, three);
 }
 
 TEST(LinearSolver, AutomaticUsesMultigridAndFallsBackWhenItFails) {

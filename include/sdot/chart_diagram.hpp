@@ -66,22 +66,39 @@ struct Adjacency {
   }
 };
 
+/// How `build_power_diagram` and `build_chart_diagram` find the cells.
+enum class PowerDiagramMethod {
+  /// `regular_triangulation` when this build has it (`has_regular_triangulation()`), else `kd_tree`.
+  automatic,
+  /// The neighbours from a 2-D regular triangulation with exact predicates (CGAL), then each cell
+  /// clipped from the domain by its neighbours. InputError when the build has no CGAL.
+  regular_triangulation,
+  /// Built-in, no third-party code: each cell clipped by the sites a kd-tree with per-node weight
+  /// bounds finds below the envelope at its vertices (branch and bound), until none is.
+  kd_tree,
+};
+
+/// True when this build of sdot has the CGAL regular triangulation (CMake option SDOT_WITH_CGAL).
+bool has_regular_triangulation();
+
 /// Upper envelope of f_i(v) = a_i·(v, 1) over `domain`: cell i = {v ∈ domain : f_i ≥ f_j ∀j}.
 /// Boundary edges are labelled `boundary_label(k)` for domain edge k. `anchors` (optional, one
 /// per site) are chart points near each site's cell — e.g. the site's own chart coordinates
-/// (Klein point, gnomonic point) — used to organise the search; the cells do not depend on them,
-/// only the speed does. Default: the power centres a_i.xy, right for the plane.
+/// (Klein point, gnomonic point) — used to organise the kd-tree's search; the cells do not depend
+/// on them, only that method's speed does. Default: the power centres a_i.xy, right for the plane.
 /// `stop_at_empty_cell`: the builder may stop at the first empty cell and leave the cells it
 /// has not built empty (for line searches, which reject any step that empties a cell).
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,
-                                           std::span<const Vec2> anchors = {}, bool stop_at_empty_cell = false);
+                                           std::span<const Vec2> anchors = {}, bool stop_at_empty_cell = false,
+                                           PowerDiagramMethod method = PowerDiagramMethod::automatic);
 
 /// The power diagram of centres c_i with power weights w_i (cell i = {v : |v − c_i|² − w_i ≤
 /// |v − c_j|² − w_j ∀j}) over `domain`; the same cells as `build_chart_diagram` with
 /// a_i = (c_i, (w_i − |c_i|²)/2), computed without cancellation when the caller has w directly.
 std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weights,
                                            const ConvexPolygon& domain, std::span<const Vec2> anchors = {},
-                                           bool stop_at_empty_cell = false);
+                                           bool stop_at_empty_cell = false,
+                                           PowerDiagramMethod method = PowerDiagramMethod::automatic);
 
 /// Same, with the neighbour candidates already known (e.g. from a 3-D hull).
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,

@@ -29,6 +29,12 @@ class MultigridSolver {
     /// At most this many unknowns: the level is the coarsest, solved by a sparse LDLᵀ.
     Eigen::Index coarse_size = 200;
     int max_levels = 12;
+    /// `compute` on a matrix of the same size as the last keeps the coarse levels and replaces
+    /// only the finest (the Newton Hessians of one solve differ little from step to step). They
+    /// are rebuilt at the next `compute` once a solve with them converges at less than half the
+    /// digits per iteration of the first solve after a build, and at once when a solve with them
+    /// does not converge.
+    bool reuse_hierarchy = true;
   };
 
   MultigridSolver();
@@ -63,6 +69,9 @@ class MultigridSolver {
   [[nodiscard]] double error() const;
   /// max_i scale_i·|r_i| after the last solve (0 without a scaled tolerance).
   [[nodiscard]] double scaled_error() const;
+  /// How many times the whole hierarchy was built (the rest of the `compute` calls reused its
+  /// coarse levels; see Settings::reuse_hierarchy).
+  [[nodiscard]] int builds() const;
   /// Unknowns per level, finest first (visible in tests and benchmarks).
   [[nodiscard]] std::vector<Eigen::Index> level_sizes() const;
   /// The matrix of the last `compute` (the hierarchy keeps it as its finest level), for a caller

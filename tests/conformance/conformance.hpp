@@ -13,7 +13,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <random>
 #include <vector>
 
@@ -276,9 +278,47 @@ TYPED_TEST_P(GeometryConformance, CellsAreConsistent) {
   EXPECT_GT(result.transport_cost, 0);
 }
 
+// The solver works on the sites in a space-filling-curve order of its own; the result must come
+// back in the caller's order, cells and neighbour labels included, whatever that order is.
+TYPED_TEST_P(GeometryConformance, ResultFollowsTheCallersSiteOrder) {
+  using T = typename TestFixture::Traits;
+  const auto geometry = T::geometry();
+  const std::size_t n = 300;
+  const auto sites = T::random_sites(n, this->random);
+  const Eigen::VectorXd masses = this->varying_masses(n, 4);
+  Options options;
+  options.rescale_masses = true;
+  options.tolerance = 1e-10;
+  const auto forward = solve(geometry, UniformDensity{}, std::span(sites), masses, options);
+  ASSERT_TRUE(forward.summary.converged()) << forward.summary.message;
+  std::vector<std::size_t> shuffled(n);
+  std::iota(shuffled.begin(), shuffled.end(), 0);
+  std::shuffle(shuffled.begin(), shuffled.end(), this->random);
+  std::vector<typename TestFixture::Point> permuted_sites(n);
+  Eigen::VectorXd permuted_masses(static_cast<Eigen::Index>(n));
+  for (std::size_t k = 0; k < n; ++k) {
+    permuted_sites[k] = sites[shuffled[k]];
+    permuted_masses[static_cast<Eigen::Index>(k)] = masses[static_cast<Eigen::Index>(shuffled[k])];
+  }
+  const auto permuted = solve(geometry, UniformDensity{}, std::span(permuted_sites), permuted_masses, options);
+  ASSERT_TRUE(permuted.summary.converged()) << permuted.summary.message;
+  const auto forward_adjacency = forward.adjacency(), permuted_adjacency = permuted.adjacency();
+  for (std::size_t k = 0; k < n; ++k) {
+    const auto i = static_cast<Eigen::Index>(shuffled[k]), j = static_cast<Eigen::Index>(k);
+    EXPECT_NEAR(permuted.weights[j], forward.weights[i], 1e-8) << "site " << k;
+    EXPECT_NEAR(permuted.masses[j], forward.masses[i], 1e-9 * forward.masses[i]) << "site " << k;
+    EXPECT_LT((permuted.centroids[k] - forward.centroids[shuffled[k]]).norm(), 1e-8) << "site " << k;
+    std::vector<int> mapped;
+    for (int label : permuted_adjacency[k])
+      mapped.push_back(static_cast<int>(shuffled[static_cast<std::size_t>(label)]));
+    std::sort(mapped.begin(), mapped.end());
+    EXPECT_EQ(mapped, forward_adjacency[shuffled[k]]) << "site " << k;
+  }
+}
+
 REGISTER_TYPED_TEST_SUITE_P(GeometryConformance, MassesSumToSourceMass, GradientIsMassMinusTarget,
                             HessianMatchesFiniteDifferences, FunctionDensityHessianMatchesFiniteDifferences,
                             NewtonConvergesOnRandomProblems, MultigridNewtonAgreesWithLdlt, TwoSiteClosedForm,
-                            VoronoiTargetsGiveConstantWeights, CellsAreConsistent);
+                            VoronoiTargetsGiveConstantWeights, CellsAreConsistent, ResultFollowsTheCallersSiteOrder);
 
 }  // namespace sdot::testing

@@ -252,9 +252,16 @@ void Hyperbolic::validate_sites(std::span<const Point> sites) const {
 Eigen::VectorXd Hyperbolic::default_weights(std::span<const Point> sites) const {
   const auto& boundary = chart_domain_.vertices();
   std::vector<Vec2> z(sites.size());
+  for (std::size_t i = 0; i < sites.size(); ++i) z[i] = to_klein(inverse_boost_ * sites[i]);
+  // Sites strictly inside the domain: h = 0 (the Voronoi diagram) holds each site in its own cell,
+  // so every cell is non-empty, and it is much nearer the solution for sites spread over the domain
+  // than the τ-scaled start below (uniform sites at 10⁵: max relative mass error 1.9e3 → ~1).
+  const bool all_inside = std::all_of(z.begin(), z.end(), [&](const Vec2& p) {
+    return chart_domain_.contains(p, -1e-9 * (1 + chart_domain_.radius()));
+  });
+  if (all_inside) return Eigen::VectorXd::Zero(static_cast<Eigen::Index>(sites.size()));
   double tau = 1;
   for (std::size_t i = 0; i < sites.size(); ++i) {
-    z[i] = to_klein(inverse_boost_ * sites[i]);
     const double r = z[i].norm();
     if (!(r > 0)) continue;
     const Vec2 direction = z[i] / r;

@@ -3,6 +3,8 @@
 
 #include <Eigen/SparseCore>
 #include <algorithm>
+#include <array>
+#include <cstdint>
 #include <cstdio>
 #include <exception>
 #include <limits>
@@ -207,6 +209,42 @@ inline bool usable_status(Status status) {
   return status == Status::converged || status == Status::precision_floor;
 }
 
+/// The indices of `points` sorted along a Morton (Z-order) curve over their bounding box, ties
+/// by index: deterministic, O(n log n), for points of any fixed dimension.
+template <class Point>
+std::vector<Eigen::Index> spatial_order(std::span<const Point> points) {
+  constexpr int dimension = Point::RowsAtCompileTime;
+  static_assert(dimension > 0 && dimension <= 3, "spatial_order: points of dimension 1 to 3");
+  constexpr int bits = 63 / dimension;
+  Point low = Point::Constant(std::numeric_limits<double>::infinity()), high = -low;
+  for (const auto& p : points) low = low.cwiseMin(p), high = high.cwiseMax(p);
+  std::vector<std::pair<std::uint64_t, Eigen::Index>> keyed(points.size());
+  const double cells = std::ldexp(1.0, bits) - 1;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    std::uint64_t code = 0;
+    std::array<std::uint64_t, 3> cell{};
+    for (int d = 0; d < dimension; ++d) {
+      const double extent = high[d] - low[d];
+      const double t = extent > 0 ? (points[i][d] - low[d]) / extent : 0;
+      cell[static_cast<std::size_t>(d)] = static_cast<std::uint64_t>(std::clamp(t, 0.0, 1.0) * cells);
+    }
+    for (int bit = bits - 1; bit >= 0; --bit)
+      for (std::size_t d = 0; d < static_cast<std::size_t>(dimension); ++d)
+        code = (code << 1) | ((cell[d] >> bit) & 1u);
+    keyed[i] = {code, static_cast<Eigen::Index>(i)};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<Eigen::Index> order(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) order[i] = keyed[i].second;
+  return order;
+}
+
+template <LinearSolver S, Geometry G, Density<G> D>
+Result<typename G::Point> solve_in_order(const G& geometry, const D& density, std::span<const typename G::Point> sites,
+                                         const Eigen::VectorXd& target_masses, const Options& options,
+                                         std::optional<Eigen::VectorXd> initial_weights,
+                                         std::span<const Eigen::Index> original, Clock::time_point start);
+
 inline void validate_targets(const Eigen::VectorXd& targets, std::size_t site_count) {
   if (static_cast<std::size_t>(targets.size()) != site_count)
     throw InputError("masses", "there are " + std::to_string(targets.size()) + " masses for " +
@@ -278,18 +316,16 @@ sdot::Evaluation<typename G::Point> sdot::evaluate(const G& geometry, const D& d
   return result;
 }
 
+/// The solver on sites in the order `solve_with` chose: `original[i]` is the caller's index of
+/// site i, used in every message that names a site. Input already validated.
 template <sdot::LinearSolver S, sdot::Geometry G, sdot::Density<G> D>
-sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& density,
-                                                 std::span<const typename G::Point> sites,
-                                                 const Eigen::VectorXd& target_masses, const Options& options,
-                                                 std::optional<Eigen::VectorXd> initial_weights) {
+sdot::Result<typename G::Point> sdot::detail::solve_in_order(
+    const G& geometry, const D& density, std::span<const typename G::Point> sites, const Eigen::VectorXd& target_masses,
+    const Options& options, std::optional<Eigen::VectorXd> initial_weights, std::span<const Eigen::Index> original,
+    Clock::time_point start) {
   using Point = typename G::Point;
-  const auto start = detail::Clock::now();
-  options.validate();
-  if (sites.empty()) throw InputError("sites", "at least one site is needed");
-  geometry.validate_sites(sites);
-  detail::validate_targets(target_masses, sites.size());
   const auto n = static_cast<Eigen::Index>(sites.size());
+  auto site_name = [&](Eigen::Index i) { return std::to_string(original[static_cast<std::size_t>(i)]); };
 
   Result<Point> result;
   Summary& summary = result.summary;
@@ -297,12 +333,6 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
   const bool user_weights = initial_weights.has_value();
   if (user_weights) {
     weights = std::move(*initial_weights);
-    if (weights.size() != n)
-      throw InputError("weights",
-                       "there are " + std::to_string(weights.size()) + " weights for " + std::to_string(n) + " sites");
-    for (Eigen::Index i = 0; i < n; ++i)
-      if (!std::isfinite(weights[i]))
-        throw InputError(indexed("weights", static_cast<std::size_t>(i)), "is not finite");
   } else {
     weights = geometry.default_weights(sites);
   }
@@ -321,9 +351,11 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
                                    " (enable options.rescale_masses to rescale them)");
   targets *= summary.mass_scale;
 
-  Eigen::Index first_empty = -1;
-  for (Eigen::Index i = 0; i < n && first_empty < 0; ++i)
-    if (current.diagram.cells[static_cast<std::size_t>(i)].empty()) first_empty = i;
+  Eigen::Index first_empty = -1;  // the empty cell of the lowest caller's index
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (current.diagram.cells[static_cast<std::size_t>(i)].empty() &&
+        (first_empty < 0 || original[static_cast<std::size_t>(i)] < original[static_cast<std::size_t>(first_empty)]))
+      first_empty = i;
   auto finish = [&](Status status, std::string message) {
     summary.status = status;
     summary.message = std::move(message);
@@ -357,11 +389,11 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
   };
   if (first_empty >= 0) {
     if (user_weights)
-      throw InputError(indexed("weights", static_cast<std::size_t>(first_empty)),
-                       "the initial weights leave the cell of site " + std::to_string(first_empty) +
+      throw InputError(indexed("weights", static_cast<std::size_t>(original[static_cast<std::size_t>(first_empty)])),
+                       "the initial weights leave the cell of site " + site_name(first_empty) +
                            " empty; the damped Newton method needs every cell non-empty at the start");
     return finish(Status::line_search_failure,
-                  "the cell of site " + std::to_string(first_empty) + " is empty at the default start");
+                  "the cell of site " + site_name(first_empty) + " is empty at the default start");
   }
 
   detail::NewtonLinearSolver<S> linear(options);
@@ -395,7 +427,7 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
         return {Status::iteration_limit, "iteration limit (" + std::to_string(options.max_iterations) +
                                              ") reached with max relative mass error " +
                                              detail::format_number(error.max_relative) + " at site " +
-                                             std::to_string(error.worst)};
+                                             site_name(error.worst)};
       ++iteration;
       auto linear_start = detail::Clock::now();
       const SparseMatrix hessian = detail::assemble_hessian(n, current.facet_weights);
@@ -469,9 +501,10 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
     if (!reached) {
       // Name the sites whose cells get no mass from ρ (evaluated at the last weights).
       current = evaluate(geometry, density, sites, weights, false, &summary.timings, false);
-      std::vector<Eigen::Index> starved;
+      std::vector<Eigen::Index> starved;  // the caller's indices
       for (Eigen::Index i = 0; i < n; ++i)
-        if (!(current.masses[i] > 0)) starved.push_back(i);
+        if (!(current.masses[i] > 0)) starved.push_back(original[static_cast<std::size_t>(i)]);
+      std::sort(starved.begin(), starved.end());
       if (!starved.empty()) {
         std::string list;
         for (std::size_t k = 0; k < std::min<std::size_t>(starved.size(), 5); ++k)
@@ -489,6 +522,65 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
   }
   auto [status, message] = newton(density, options.tolerance);
   return finish(status, prefix + message);
+}
+
+template <sdot::LinearSolver S, sdot::Geometry G, sdot::Density<G> D>
+sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& density,
+                                                 std::span<const typename G::Point> sites,
+                                                 const Eigen::VectorXd& target_masses, const Options& options,
+                                                 std::optional<Eigen::VectorXd> initial_weights) {
+  using Point = typename G::Point;
+  const auto start = detail::Clock::now();
+  options.validate();
+  if (sites.empty()) throw InputError("sites", "at least one site is needed");
+  geometry.validate_sites(sites);
+  detail::validate_targets(target_masses, sites.size());
+  const auto n = static_cast<Eigen::Index>(sites.size());
+  if (initial_weights) {
+    if (initial_weights->size() != n)
+      throw InputError("weights", "there are " + std::to_string(initial_weights->size()) + " weights for " +
+                                      std::to_string(n) + " sites");
+    for (Eigen::Index i = 0; i < n; ++i)
+      if (!std::isfinite((*initial_weights)[i]))
+        throw InputError(indexed("weights", static_cast<std::size_t>(i)), "is not finite");
+  }
+  // The solve runs on the sites in a space-filling-curve order: neighbouring cells then have
+  // nearby indices, which keeps the diagram, the integration and the Hessian's rows in cache and
+  // lets the multigrid smoother split the rows into independent blocks. The result comes back in
+  // the caller's order.
+  const std::vector<Eigen::Index> order = detail::spatial_order(sites);
+  std::vector<Point> local_sites(sites.size());
+  Eigen::VectorXd local_targets(n);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    local_sites[static_cast<std::size_t>(k)] = sites[static_cast<std::size_t>(order[static_cast<std::size_t>(k)])];
+    local_targets[k] = target_masses[order[static_cast<std::size_t>(k)]];
+  }
+  std::optional<Eigen::VectorXd> local_weights;
+  if (initial_weights) {
+    local_weights.emplace(n);
+    for (Eigen::Index k = 0; k < n; ++k) (*local_weights)[k] = (*initial_weights)[order[static_cast<std::size_t>(k)]];
+  }
+  Result<Point> local = detail::solve_in_order<S>(geometry, density, std::span<const Point>(local_sites), local_targets,
+                                                  options, std::move(local_weights), order, start);
+  Result<Point> result;
+  result.transport_cost = local.transport_cost;
+  result.summary = std::move(local.summary);
+  result.weights.resize(n), result.masses.resize(n), result.target_masses.resize(n);
+  result.centroids.resize(sites.size());
+  result.diagram.cells.resize(sites.size());
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const Eigen::Index i = order[static_cast<std::size_t>(k)];
+    result.weights[i] = local.weights[k];
+    result.masses[i] = local.masses[k];
+    result.target_masses[i] = local.target_masses[k];
+    result.centroids[static_cast<std::size_t>(i)] = local.centroids[static_cast<std::size_t>(k)];
+    auto& cell = result.diagram.cells[static_cast<std::size_t>(i)];
+    cell = std::move(local.diagram.cells[static_cast<std::size_t>(k)]);
+    for (int& label : cell.neighbors)
+      if (!is_boundary(label)) label = static_cast<int>(order[static_cast<std::size_t>(label)]);
+  }
+  result.summary.timings.total_s = detail::seconds_since(start);
+  return result;
 }
 
 template <sdot::Geometry G, sdot::Density<G> D>
