@@ -461,6 +461,7 @@ bool has_regular_triangulation() {
 #endif
 }
 
+#ifdef SDOT_HAVE_CGAL
 namespace {
 
 /// Cell i = the domain clipped by its Laguerre neighbours, in coordinates u = v − c_i (see below).
@@ -481,7 +482,6 @@ void clip_cell(ChartCell& cell, std::size_t i, std::span<const int> neighbors, s
   for (auto& u : cell.vertices) u += center;
 }
 
-#ifdef SDOT_HAVE_CGAL
 std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> centers,
                                                       std::span<const double> power_weight, const ConvexPolygon& domain,
                                                       bool stop_at_empty_cell) {
@@ -493,7 +493,8 @@ std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> cent
       std::find(triangulation.is_vertex.begin(), triangulation.is_vertex.end(), 0) != triangulation.is_vertex.end())
     return cells;
   std::atomic<bool> found_empty{false};
-  // In insertion (Hilbert) order: neighbouring cells share their neighbours' data in cache.
+  // In the triangulation's storage order, close to its (Hilbert) insertion order: neighbouring
+  // cells share their neighbours' data in cache.
   const auto& order = triangulation.order;
 #pragma omp parallel for schedule(dynamic, 256)
   for (std::size_t position = 0; position < order.size(); ++position) {
@@ -504,9 +505,9 @@ std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> cent
   }
   return cells;
 }
-#endif
 
 }  // namespace
+#endif
 
 std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weight,
                                            const ConvexPolygon& domain, std::span<const Vec2> anchors,
