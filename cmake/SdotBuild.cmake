@@ -7,8 +7,10 @@ function(sdot_target_warnings target)
                                              -Wold-style-cast -Wcast-align -Woverloaded-virtual)
   endif()
   if(SDOT_SANITIZE)
-    target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-omit-frame-pointer)
-    target_link_options(${target} PRIVATE -fsanitize=address,undefined)
+    # Undefined behaviour stops the program (a failed test), instead of a message that passes.
+    target_compile_options(${target} PRIVATE -fsanitize=${SDOT_SANITIZE} -fno-sanitize-recover=all
+                                             -fno-omit-frame-pointer)
+    target_link_options(${target} PRIVATE -fsanitize=${SDOT_SANITIZE})
   endif()
 endfunction()
 

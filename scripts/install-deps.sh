@@ -5,7 +5,8 @@ packages=(cmake g++ make libeigen3-dev libboost-dev libqhull-dev libcgal-dev lib
           libopenblas0-pthread
           nlohmann-json3-dev python3-numpy
           pybind11-dev python3-dev python3-pytest python3-matplotlib python3-setuptools python3-wheel python3-pip
-          python3-venv)
+          python3-venv
+          doxygen)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -33,3 +33,35 @@ sdot.plot.cells(sphere, ax=axes[0], color_by="mass")
 sdot.plot.cells(h2, ax=axes[1], color_by="weight")
 fig.savefig(f"{OUT}/python_sphere_h2.png", dpi=70, bbox_inches="tight")
 print(sphere, h2, sep="\n")
+
+# --- docs/index.md's first picture: what the weights, the cells and the masses mean
+from matplotlib.collections import PolyCollection  # noqa: E402
+
+rng = np.random.default_rng(3)
+sites = rng.random((16, 2))
+bump = lambda x: 0.2 + 3.0 * np.exp(-8 * ((x[:, 0] - 0.7) ** 2 + (x[:, 1] - 0.35) ** 2))  # noqa: E731
+# all weights 0 and no Newton step: the Voronoi diagram, whose cells carry unequal masses
+voronoi = sdot.solve(sites, density=bump, weights=np.zeros(16), max_iterations=0, rescale_masses=True)
+transport = sdot.solve(sites, density=bump, rescale_masses=True)  # every cell carries 1/16
+grid = np.linspace(0, 1, 200)
+gx, gy = np.meshgrid(grid, grid)
+rho = bump(np.column_stack((gx.ravel(), gy.ravel()))).reshape(gx.shape)
+fig, axes = plt.subplots(1, 3, figsize=(12.5, 4.6), layout="constrained")
+axes[0].imshow(rho, origin="lower", extent=(0, 1, 0, 1), cmap="Greys")
+axes[0].plot(sites[:, 0], sites[:, 1], "o", color="#d03020")
+axes[0].set_title("source density ρ (dark: dense)\nand 16 sites")
+mass_norm = matplotlib.colors.Normalize(0, max(voronoi.masses.max(), transport.masses.max()))
+for ax, result, title in ((axes[1], voronoi, "all weights 0 (Voronoi cells):\nthe masses differ"),
+                          (axes[2], transport, "the solved weights (printed):\nevery cell's mass is 1/16")):
+    cells = PolyCollection(result.cells, array=result.masses, cmap="viridis", norm=mass_norm,
+                           edgecolor="white", linewidth=1.2)
+    ax.add_collection(cells)
+    ax.plot(result.sites[:, 0], result.sites[:, 1], "o", color="#d03020", markersize=4)
+    for site, weight in zip(result.sites, result.weights if result is transport else []):
+        ax.annotate(f"{weight:+.3f}", site, textcoords="offset points", xytext=(0, 5), ha="center", fontsize=7)
+    ax.set_title(title)
+fig.colorbar(cells, ax=axes[2], label="mass of the cell, ∫ρ over it")
+for ax in axes:
+    ax.set_xlim(0, 1), ax.set_ylim(0, 1), ax.set_aspect("equal"), ax.set_xticks([]), ax.set_yticks([])
+fig.savefig(f"{OUT}/concepts.png", dpi=70, bbox_inches="tight")
+print(f"Voronoi masses {voronoi.masses.min():.3f}–{voronoi.masses.max():.3f};", transport)

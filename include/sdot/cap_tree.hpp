@@ -14,19 +14,30 @@
 
 namespace sdot {
 
+/// A binary tree of bounding caps over caps on the unit sphere (leaves of at most 8 items),
+/// built once from the items; read-only afterwards, so concurrent queries are safe.
 class CapTree {
  public:
+  /// A node: a cap containing the caps of its items.
   struct Node {
     Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  ///< unit centre of the node's cap
-    double cos_radius = -1, sin_radius = 0;           ///< its angular radius (padded by round-off)
-    int begin = 0, end = 0;                           ///< items order()[begin, end)
-    int left = -1, right = -1;                        ///< children (-1 for a leaf)
+    ///@{
+    double cos_radius = -1, sin_radius = 0;  ///< cosine and sine of its angular radius (padded by round-off)
+    ///@}
+    ///@{
+    int begin = 0, end = 0;  ///< items order()[begin, end)
+    ///@}
+    ///@{
+    int left = -1, right = -1;  ///< children, as indices into nodes() (-1 for a leaf)
+    ///@}
   };
 
+  /// An empty tree (no nodes).
   CapTree() = default;
   /// `centres` are unit vectors; `radii` their angular radii (empty: all zero).
   explicit CapTree(std::span<const Eigen::Vector3d> centres, std::span<const double> radii = {});
 
+  /// The nodes; node 0 is the root (none for an empty tree).
   [[nodiscard]] const std::vector<Node>& nodes() const { return nodes_; }
   /// Item indices, each node's items contiguous.
   [[nodiscard]] const std::vector<int>& order() const { return order_; }

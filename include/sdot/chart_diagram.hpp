@@ -19,12 +19,15 @@
 
 namespace sdot {
 
+/// A point or vector of a 2-D chart.
 using Vec2 = Eigen::Vector2d;
+/// A homogeneous chart vector (v, 1) or a dual vector a_i.
 using Vec3 = Eigen::Vector3d;
 
 /// A convex polygon in a 2-D chart, vertices counter-clockwise, validated on construction.
 class ConvexPolygon {
  public:
+  /// An empty polygon (no vertices); a placeholder to assign a valid polygon to.
   ConvexPolygon() = default;
   /// Validates and stores `vertices` (either orientation; stored counter-clockwise).
   /// Throws InputError naming `field` (e.g. "domain") when a vertex is not finite, there are
@@ -32,13 +35,17 @@ class ConvexPolygon {
   /// its area is zero.
   explicit ConvexPolygon(std::vector<Vec2> vertices, const std::string& field = "domain");
 
-  /// Axis-aligned rectangle [x0, x1] × [y0, y1].
+  /// Axis-aligned rectangle [x0, x1] × [y0, y1]. Throws InputError (field `domain`) when it is
+  /// degenerate or not finite.
   static ConvexPolygon rectangle(double x0, double y0, double x1, double y1);
 
+  /// The vertices, counter-clockwise.
   [[nodiscard]] const std::vector<Vec2>& vertices() const { return vertices_; }
+  /// The area (shoelace formula).
   [[nodiscard]] double area() const;
+  /// The centroid of the polygon's area.
   [[nodiscard]] Vec2 centroid() const;
-  /// True when `p` lies inside or on the boundary (up to a relative slack).
+  /// True when `p` lies inside, on the boundary, or outside by at most the distance `slack`.
   [[nodiscard]] bool contains(const Vec2& p, double slack = 0) const;
   /// Largest distance of a vertex from the origin.
   [[nodiscard]] double radius() const;
@@ -54,13 +61,17 @@ using ChartCell = Cell<Vec2>;
 void clip(ChartCell& cell, const Vec2& normal, double offset, int label);
 
 /// Neighbour candidates for a set of affine functions f_i(v) = a_i·(v, 1), in CSR form:
-/// the neighbours of site i are `neighbors[offsets[i] .. offsets[i+1])`. Always a superset of
+/// the neighbours of site i are `neighbors[k]` for `offsets[i]` ≤ k < `offsets[i + 1]`
+/// (of(i)). Always a superset of
 /// the true Laguerre neighbours inside any polygon, computed from the regular triangulation
 /// (Qhull, lower hull of the lifted points (a_i.xy / 2, −a_i.z)). Indices ≥ the number of
 /// sites are internal helper functions that never win on the domain; builders skip them.
 struct Adjacency {
+  /// Where each site's list starts in `neighbors`; one entry per site, plus the end.
   std::vector<int> offsets;
+  /// The lists of all sites, one after the other.
   std::vector<int> neighbors;
+  /// The neighbour candidates of site i.
   [[nodiscard]] std::span<const int> of(std::size_t i) const {
     return {neighbors.data() + offsets[i], neighbors.data() + offsets[i + 1]};
   }
@@ -111,21 +122,30 @@ Adjacency chart_adjacency(std::span<const Vec3> dual, const ConvexPolygon& domai
 /// outside, and for each half-edge (triangle t, edge k from corner k to corner k+1) the index
 /// 3t' + k' of the opposite half-edge.
 struct HullTriangulation {
+  /// The triangles, as indices of the points, counter-clockwise seen from outside.
   std::vector<std::array<int, 3>> triangles;
+  /// `opposite[3t + k]`: the half-edge 3t' + k' running the other way along edge k of triangle t.
   std::vector<int> opposite;
 };
 
+/// A 3-D convex hull, as convex_hull_3d() and convex_hull_3d_by_flips() return it.
+struct Hull3 {
+  /// For each point, the points joined to it by a hull edge (none for a point inside the hull).
+  Adjacency edges;
+  /// 1 for the points that are hull vertices, 0 for the others.
+  std::vector<char> is_vertex;
+  /// The largest offset d of the facet planes n·x + d = 0 (n the unit outward normal): < 0 iff
+  /// the origin is strictly inside the hull.
+  double max_facet_offset = 0;
+  /// The hull's triangulation: always from convex_hull_3d_by_flips(); from convex_hull_3d() with
+  /// `with_surface` when the origin is strictly inside, else empty.
+  HullTriangulation surface;
+};
 /// The 3-D convex hull of `points` (Qhull, triangulated): vertex adjacency along hull edges,
 /// which points are hull vertices, and the largest facet offset (< 0 iff the origin is strictly
 /// inside the hull). With `with_surface`, and when the origin is strictly inside, `surface` is
 /// the triangulation (empty otherwise). Throws sdot::Error when the hull is degenerate (all
 /// points coplanar).
-struct Hull3 {
-  Adjacency edges;
-  std::vector<char> is_vertex;
-  double max_facet_offset = 0;
-  HullTriangulation surface;
-};
 Hull3 convex_hull_3d(std::span<const Vec3> points, bool with_surface = false);
 
 /// The same hull, grown from `start`, the hull triangulation of nearby points (the previous

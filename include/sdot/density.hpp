@@ -24,13 +24,17 @@ using ScalarField = std::function<double(const Point&)>;
 /// ρ ≡ 1 with respect to the geometry's own area measure (intrinsic area on S² and H²).
 /// Integrated exactly by every geometry.
 struct UniformDensity {
-  /// `with_cost` false skips the transport cost (the solver needs it only at the end).
+  /// Mass, first moment and (unless `with_cost` is false) transport cost of the cell, from the
+  /// geometry's exact integrals. `with_cost` false skips the cost (the solver needs it only at
+  /// the end).
   template <class G>
   [[nodiscard]] CellIntegrals<typename G::Point> integrate_cell(const G& geometry, const Cell<typename G::Point>& cell,
                                                                 const typename G::Point& site,
                                                                 bool with_cost = true) const {
     return geometry.integrate(cell, site, with_cost);
   }
+  /// The Hessian weight ∫_{[a,b]} 1 / |∇_x(c(·, y_i) − c(·, y_j))| ds of the cell edge from `a`
+  /// to `b` between the cells of `site_i` and `site_j` (with their weights), exact.
   template <class G>
   [[nodiscard]] double facet_weight(const G& geometry, const typename G::Point& a, const typename G::Point& b,
                                     const typename G::Point& site_i, double weight_i, const typename G::Point& site_j,
@@ -45,14 +49,21 @@ struct UniformDensity {
 /// several threads.
 template <class Point>
 struct FunctionDensity {
+  /// ρ at a point of the geometry (≥ 0 and finite on the source domain).
   ScalarField<Point> rho;
+  /// The quadrature order n: n² points per fan triangle, n Gauss–Legendre points per edge; in
+  /// 1…64 (the quadrature rules throw InputError otherwise).
   int quadrature_order = 8;
 
+  /// Mass, first moment and (unless `with_cost` is false) transport cost of ρ over the cell,
+  /// by quadrature.
   template <class G>
   [[nodiscard]] CellIntegrals<Point> integrate_cell(const G& geometry, const Cell<Point>& cell, const Point& site,
                                                     bool with_cost = true) const {
     return geometry.integrate(cell, site, rho, quadrature_order, with_cost);
   }
+  /// The Hessian weight ∫_{[a,b]} ρ / |∇_x(c(·, y_i) − c(·, y_j))| ds of the cell edge from `a`
+  /// to `b`, by Gauss–Legendre quadrature.
   template <class G>
   [[nodiscard]] double facet_weight(const G& geometry, const Point& a, const Point& b, const Point& site_i,
                                     double weight_i, const Point& site_j, double weight_j) const {

@@ -11,6 +11,7 @@ namespace sdot {
 /// Base of every exception sdot throws.
 class Error : public std::runtime_error {
  public:
+  /// std::runtime_error's constructors: the message is what() returns.
   using std::runtime_error::runtime_error;
 };
 

@@ -11,7 +11,10 @@ namespace sdot {
 
 /// A grayscale image: `width` × `height` values in [0, 1], row-major, row 0 at the top.
 struct GrayImage {
+  ///@{
+  /// The size in pixels: `width` columns, `height` rows.
   int width = 0, height = 0;
+  ///@}
   /// `width * height` values; pixel (row, column) is `values[row * width + column]`.
   std::vector<double> values;
   /// The value of pixel (`row`, `column`); precondition: 0 ≤ row < height, 0 ≤ column < width.

@@ -19,6 +19,7 @@
 
 namespace sdot {
 
+/// The Newton systems' matrix type (column-major, double).
 using SparseMatrix = Eigen::SparseMatrix<double>;
 
 /// A sparse symmetric positive-definite solver with Eigen's interface.
@@ -55,9 +56,14 @@ constexpr bool has_cholmod() {
 #endif
 }
 
+/// Sparse LDLᵀ of the lower triangle (LinearSolverKind::ldlt).
 using DefaultLinearSolver = Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower>;
+/// Conjugate gradients with Eigen's default (Jacobi) preconditioner on the whole matrix
+/// (LinearSolverKind::conjugate_gradient; Options::cg_tolerance).
 using ConjugateGradientSolver = Eigen::ConjugateGradient<SparseMatrix, Eigen::Lower | Eigen::Upper>;
 #ifdef SDOT_HAVE_CHOLMOD
+/// CHOLMOD's supernodal Cholesky of the lower triangle (LinearSolverKind::cholmod); only in builds
+/// with CHOLMOD (has_cholmod()).
 using CholmodSolver = Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower>;
 
 namespace detail {
@@ -147,13 +153,19 @@ using DirectLinearSolver = DefaultLinearSolver;
 /// large problem that fall back may use different direct solvers and differ in the last bits.
 class AutomaticLinearSolver {
  public:
+  /// From how many unknowns the default-constructed solver tries the multigrid path first.
   static constexpr Eigen::Index default_multigrid_size = 12000;
 
+  /// Multigrid from default_multigrid_size unknowns.
   AutomaticLinearSolver() = default;
   /// `multigrid_size`: from how many unknowns the multigrid path is tried first.
   explicit AutomaticLinearSolver(Eigen::Index multigrid_size) : multigrid_size_(multigrid_size) {}
 
+  /// The direct path's symbolic analysis of a new sparsity pattern (the multigrid path needs none).
   void analyzePattern(const SparseMatrix& matrix) { direct_.analyzePattern(matrix); }
+  /// Prepares `matrix` (symmetric, both triangles stored): builds the multigrid hierarchy when the
+  /// system is large enough and the multigrid path has not failed, else (or when that build fails)
+  /// factorises it by the direct path. info() tells whether it succeeded.
   void factorize(const SparseMatrix& matrix) {
     last_was_multigrid_ = false;
     if (matrix.rows() >= multigrid_size_ && !multigrid_failed_) {
@@ -166,11 +178,14 @@ class AutomaticLinearSolver {
     }
     direct_.factorize(matrix);
   }
+  /// analyzePattern() then factorize().
   void compute(const SparseMatrix& matrix) {
     analyzePattern(matrix);
     factorize(matrix);
   }
+  /// `Eigen::Success`, or the failure of the path that handled the last factorize() or solve().
   [[nodiscard]] Eigen::ComputationInfo info() const { return last_was_multigrid_ ? multigrid_.info() : direct_.info(); }
+  /// The solution x of matrix·x = `rhs` for the last factorised matrix.
   /// Not const, unlike Eigen's solvers: a failed multigrid iteration falls back to a factorisation.
   [[nodiscard]] Eigen::VectorXd solve(const Eigen::VectorXd& rhs) {
     if (last_was_multigrid_) {
@@ -185,6 +200,7 @@ class AutomaticLinearSolver {
   }
   /// Forwarded to the multigrid path (the direct path is exact anyway).
   void setTolerance(double tolerance) { multigrid_.setTolerance(tolerance); }
+  /// Forwarded to the multigrid path: see MultigridSolver::set_scaled_tolerance.
   void set_scaled_tolerance(const Eigen::VectorXd& scale, double tolerance) {
     multigrid_.set_scaled_tolerance(scale, tolerance);
   }
@@ -193,16 +209,21 @@ class AutomaticLinearSolver {
   /// True once the multigrid path has failed and was switched off.
   [[nodiscard]] bool multigrid_failed() const { return multigrid_failed_; }
   /// True once the direct path's trial chose CHOLMOD (visible in tests).
-  [[nodiscard]] bool uses_cholmod() const {
-    if constexpr (requires(const detail::DirectLinearSolver& d) { d.uses_cholmod(); })
-      return direct_.uses_cholmod();
-    else
-      return false;
-  }
+  [[nodiscard]] bool uses_cholmod() const { return direct_uses_cholmod(direct_); }
   /// The multigrid path's solver (its iteration limit can be set; tests use it).
   [[nodiscard]] MultigridSolver& multigrid() { return multigrid_; }
 
  private:
+  // A template, so that the requires-expression is a test rather than a hard error when the
+  // direct solver of a build without CHOLMOD has no uses_cholmod().
+  template <class Direct>
+  static bool direct_uses_cholmod(const Direct& direct) {
+    if constexpr (requires { direct.uses_cholmod(); })
+      return direct.uses_cholmod();
+    else
+      return false;
+  }
+
   Eigen::Index multigrid_size_ = default_multigrid_size;
   MultigridSolver multigrid_;
   detail::DirectLinearSolver direct_;

@@ -18,8 +18,13 @@
 
 namespace sdot {
 
+/// The Newton systems' matrix type (column-major, double).
 using SparseMatrix = Eigen::SparseMatrix<double>;
 
+/// Conjugate gradients preconditioned by one smoothed-aggregation algebraic multigrid V-cycle
+/// (LinearSolverKind::multigrid, and the large-system path of AutomaticLinearSolver). A model
+/// of `LinearSolver` for symmetric matrices with a positive diagonal, such as the Newton
+/// Hessians with a pinned site. Movable, not copyable.
 class MultigridSolver {
  public:
   /// How the hierarchy is built.
@@ -28,6 +33,7 @@ class MultigridSolver {
     double strength_threshold = 0.08;
     /// At most this many unknowns: the level is the coarsest, solved by a sparse LDLᵀ.
     Eigen::Index coarse_size = 200;
+    /// At most this many levels, the finest included: the last is solved directly, whatever its size.
     int max_levels = 12;
     /// `compute` on a matrix of the same size as the last keeps the coarse levels and replaces
     /// only the finest (the Newton Hessians of one solve differ little from step to step). They
@@ -37,19 +43,27 @@ class MultigridSolver {
     bool reuse_hierarchy = true;
   };
 
+  /// A solver with the default Settings.
   MultigridSolver();
+  /// A solver whose hierarchies are built with `settings`.
   explicit MultigridSolver(const Settings& settings);
+  /// Not copyable (the hierarchy is owned).
   MultigridSolver(const MultigridSolver&) = delete;
+  /// Not copyable (the hierarchy is owned).
   MultigridSolver& operator=(const MultigridSolver&) = delete;
+  /// Takes over the other solver's hierarchy and settings.
   MultigridSolver(MultigridSolver&&) noexcept;
+  /// Takes over the other solver's hierarchy and settings.
   MultigridSolver& operator=(MultigridSolver&&) noexcept;
+  /// Releases the hierarchy.
   ~MultigridSolver();
 
   /// Builds the hierarchy of `matrix`: symmetric, both triangles stored, positive diagonal.
   void compute(const SparseMatrix& matrix);
-  /// `Eigen::Success` after a successful compute and solve; `NumericalIssue` when the matrix has a
-  /// non-positive diagonal entry or a level cannot be factorised; `NoConvergence` when the last
-  /// solve stopped at the iteration limit above the tolerance.
+  /// `Eigen::Success` after a successful compute and solve; `InvalidInput` when the matrix is not
+  /// square or not compressed; `NumericalIssue` when the matrix has a non-positive diagonal entry
+  /// or a level cannot be factorised; `NoConvergence` when the last solve stopped at the iteration
+  /// limit above the tolerance.
   [[nodiscard]] Eigen::ComputationInfo info() const;
   /// Solves matrix·x = rhs from x = 0.
   [[nodiscard]] Eigen::VectorXd solve(const Eigen::VectorXd& rhs) const;
@@ -61,6 +75,8 @@ class MultigridSolver {
   void setTolerance(double tolerance);
   /// An empty `scale` removes the scaled criterion.
   void set_scaled_tolerance(const Eigen::VectorXd& scale, double tolerance);
+  /// At most this many conjugate-gradient iterations per solve (default 200); reaching it above
+  /// the tolerance is `Eigen::NoConvergence`.
   void setMaxIterations(int iterations);
 
   /// Conjugate-gradient iterations of the last solve.

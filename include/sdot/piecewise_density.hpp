@@ -54,9 +54,9 @@ enum class PieceKind : std::uint8_t {
 /// open hemisphere of the chart) and the local form of ρ.
 template <class Point>
 struct DensityPiece {
-  std::vector<Point> polygon;
-  PieceKind kind = PieceKind::constant;
-  std::array<double, 3> values{};
+  std::vector<Point> polygon;            ///< the vertices, in the geometry's coordinates
+  PieceKind kind = PieceKind::constant;  ///< how ρ varies on the piece
+  std::array<double, 3> values{};        ///< ρ ≥ 0: values[0] (constant), at corner k (linear)
 };
 
 /// ρ defined on interior-disjoint convex pieces, zero elsewhere. A model of `Density<G>`.
@@ -64,7 +64,7 @@ struct DensityPiece {
 template <ProjectiveGeometry G>
 class PiecewiseDensity {
  public:
-  using Point = typename G::Point;
+  using Point = typename G::Point;  ///< the geometry's point type
 
   /// Validates the pieces (throws InputError naming `<name>[p]` for a non-finite vertex,
   /// a negative or non-finite value, fewer than 3 vertices, a non-convex polygon, a linear piece
@@ -75,9 +75,11 @@ class PiecewiseDensity {
   PiecewiseDensity(const G& geometry, const std::vector<DensityPiece<Point>>& pieces, ScalarField<Point> field = {},
                    int quadrature_order = 3, std::string name = "density.pieces");
 
+  /// The number of pieces kept (degenerate ones dropped).
   [[nodiscard]] std::size_t piece_count() const { return kinds_.size(); }
   /// ∫ρ over all pieces.
   [[nodiscard]] double total_mass() const;
+  /// The base quadrature order of linear and field pieces (see the constructor).
   [[nodiscard]] int quadrature_order() const { return quadrature_order_; }
 
   /// Mass, first moment and cost of ρ over a cell (the `Density` concept).
@@ -144,8 +146,8 @@ class PiecewiseDensity {
 /// A triangle mesh: vertices and triangles as vertex-index triples.
 template <class Point>
 struct TriangleMesh {
-  std::vector<Point> vertices;
-  std::vector<std::array<int, 3>> triangles;
+  std::vector<Point> vertices;                ///< the vertices, in the geometry's coordinates
+  std::vector<std::array<int, 3>> triangles;  ///< vertex indices of each triangle
 };
 
 /// Splits every triangle into 4 by its geodesic edge midpoints, `levels` times (shared edges get

@@ -22,6 +22,8 @@
 #include "sdot/linear_solver.hpp"
 #include "sdot/options.hpp"
 
+/// Semi-discrete optimal transport on the plane, the sphere and the hyperbolic plane: sdot::solve
+/// and what it is built from (geometries, densities, linear solvers, the cell builder).
 namespace sdot {
 
 /// The solution of a semi-discrete transport problem.
@@ -31,9 +33,9 @@ struct Result {
   Eigen::VectorXd masses;         ///< μ(W_i) at `weights`
   Eigen::VectorXd target_masses;  ///< ν_i after rescaling (see Summary::mass_scale)
   std::vector<Point> centroids;   ///< centroid of each cell (the site itself for an empty cell)
-  double transport_cost = 0;      ///< Σ_i ∫_{W_i} c(x, y_i) dμ (NaN with !Options::compute_transport_cost)
+  double transport_cost = 0;      ///< Σ_i ∫_{W_i} c(x, y_i) dμ (NaN if Options::compute_transport_cost is false)
   Diagram<Point> diagram;         ///< the cells at `weights`
-  Summary summary;
+  Summary summary;                ///< how the solve ended, the final errors, history and timings
 
   /// Neighbour lists of the cells.
   [[nodiscard]] std::vector<std::vector<int>> adjacency() const { return sdot::adjacency(diagram); }
@@ -42,11 +44,12 @@ struct Result {
 /// Cells, their integrals and the Hessian of E at one set of weights.
 template <class Point>
 struct Evaluation {
-  Diagram<Point> diagram;
-  std::vector<CellIntegrals<Point>> integrals;
-  Eigen::VectorXd masses;
+  Diagram<Point> diagram;                       ///< the cells at the weights
+  std::vector<CellIntegrals<Point>> integrals;  ///< per cell (zero for an empty cell)
+  Eigen::VectorXd masses;                       ///< μ(W_i), the integrals' masses
   /// Off-diagonal Hessian weights ∫_Γij ρ/|∇(c_i − c_j)| for i < j (summed per pair on assembly),
   /// by increasing i and, for one i, in the order of its cell's edges: the same at every call.
+  /// Empty unless asked for (`with_hessian`).
   std::vector<Eigen::Triplet<double>> facet_weights;
 };
 

@@ -85,8 +85,7 @@ int main(int argc, char** argv) {
   // The stages allocate and free arrays of several MB many times (diagrams, Newton matrices,
   // factors, per-stage copies of the map). By default glibc maps many of them afresh and gives
   // them back to the kernel when freed, so their pages are faulted in and zeroed again on the
-  // next use. Keeping freed memory in the heap made igea_134k faster in 8 of 9 interleaved pairs
-  // (docs/benchmarks.md).
+  // next use. Keeping freed memory in the heap made igea_134k faster in 8 of 9 interleaved pairs.
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
   mallopt(M_TOP_PAD, 16 << 20);

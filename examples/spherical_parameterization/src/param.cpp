@@ -656,7 +656,7 @@ namespace {
 /// the other two vertices (counter-clockwise), the face's target area and the cotangents of the
 /// mesh angles at i, j and k (MIPS term). Stored contiguously per vertex, so a local energy reads
 /// one block instead of following vertex → face → (vertices, target, cotangents) indirections
-/// (igea_134k: the optimization about 20 % faster, docs/benchmarks.md).
+/// (igea_134k: the optimization about 20 % faster).
 struct Corner {
   int j, k;
   double target;

@@ -100,7 +100,7 @@ struct OptimizeOptions {
   /// the smaller of that energy and the mean local energy at the start: vertices that carry
   /// much of the error keep moving after the others have stopped. 1e-2 against 1e-3 (relative to
   /// the vertex's own energy) halved the optimization's time on bunny_35k and igea_134k for area
-  /// mean|d| 0.0157 and 0.0044 instead of 0.0148 and 0.0033 (docs/benchmarks.md).
+  /// mean|d| 0.0157 and 0.0044 instead of 0.0148 and 0.0033.
   double activity_threshold = 1e-2;
 };
 struct OptimizeResult {

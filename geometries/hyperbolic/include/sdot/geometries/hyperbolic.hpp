@@ -30,13 +30,21 @@
 
 namespace sdot {
 
+/// The hyperbolic plane in the hyperboloid model, cost ln cosh d(x, y), a compact convex geodesic
+/// polygon as source domain (see the file's description and docs/hyperbolic.md): a model of
+/// `Geometry` and `ProjectiveGeometry`. Built from the domain's vertices in any of the three
+/// models; there is no default domain (H² has infinite area).
 class Hyperbolic {
  public:
   /// A point of the hyperboloid (x₁, x₂, x₃), x₃ > 0, ⟨x, x⟩_M = −1.
   using Point = Eigen::Vector3d;
 
   /// The coordinate model of input points.
-  enum class Model { klein, poincare, hyperboloid };
+  enum class Model {
+    klein,       ///< Klein (Beltrami–Klein) disc, 2 coordinates
+    poincare,    ///< Poincaré disc, 2 coordinates
+    hyperboloid  ///< the hyperboloid itself, 3 coordinates
+  };
 
   /// The domain, from hyperboloid vertices (either orientation). Throws InputError naming
   /// `domain[k]` for a vertex that is not finite or not on the hyperboloid, and `domain` /
@@ -47,12 +55,16 @@ class Hyperbolic {
   /// 3 for the hyperboloid). Throws InputError as above, and for a Klein or Poincaré vertex
   /// on or outside the ideal boundary |k| ≥ 1.
   static Hyperbolic from_model(Model model, std::span<const Eigen::VectorXd> vertices);
+  /// The domain from Klein disc vertices; errors as from_model().
   static Hyperbolic from_klein(std::span<const Eigen::Vector2d> vertices);
+  /// The domain from Poincaré disc vertices; errors as from_model().
   static Hyperbolic from_poincare(std::span<const Eigen::Vector2d> vertices);
   /// The regular polygon with `sides` vertices at hyperbolic distance `radius` from `center`
-  /// (the first vertex in the direction of the chart's x axis at the centre).
+  /// (the first vertex in the direction of the chart's x axis at the centre). Throws InputError
+  /// naming `sides` (< 3), `radius` (not positive and finite) or `center` (not on the hyperboloid).
   static Hyperbolic regular_polygon(int sides, double radius, const Point& center = Point(0, 0, 1));
 
+  /// "hyperbolic", the geometry's name in problem files and on the command line.
   static constexpr std::string_view name() { return "hyperbolic"; }
 
   // ---- coordinates -------------------------------------------------------------------
@@ -60,14 +72,18 @@ class Hyperbolic {
   static double minkowski(const Point& a, const Point& b) { return a.x() * b.x() + a.y() * b.y() - a.z() * b.z(); }
   /// Hyperbolic distance arccosh(−⟨a, b⟩_M), computed stably for nearby points.
   static double distance(const Point& a, const Point& b);
-  /// Klein / Poincaré disc point → hyperboloid. Throws InputError(field) when |k| ≥ 1 or not finite.
+  /// Klein disc point → hyperboloid. Throws InputError(field) when |k| ≥ 1 or not finite.
   static Point from_klein(const Eigen::Vector2d& k, const std::string& field = "point");
+  /// Poincaré disc point → hyperboloid. Throws InputError(field) when |p| ≥ 1 or not finite.
   static Point from_poincare(const Eigen::Vector2d& p, const std::string& field = "point");
   /// Checks a hyperboloid point (finite, x₃ > 0, ⟨x, x⟩_M = −1 to 1e−9 relative) and re-projects it.
   static Point from_hyperboloid(const Point& x, const std::string& field = "point");
-  /// A point in any model (2 or 3 coordinates as the model requires).
+  /// A point in any model (2 or 3 coordinates as the model requires); InputError(field) for a
+  /// wrong number of coordinates and as the model's own conversion.
   static Point from_model(Model model, const Eigen::VectorXd& coordinates, const std::string& field = "point");
+  /// Hyperboloid → Klein disc: (x₁, x₂) / x₃.
   static Eigen::Vector2d to_klein(const Point& x) { return x.head<2>() / x.z(); }
+  /// Hyperboloid → Poincaré disc: (x₁, x₂) / (1 + x₃).
   static Eigen::Vector2d to_poincare(const Point& x) { return x.head<2>() / (1 + x.z()); }
   /// The point at distance `r` from the origin (0, 0, 1) in direction angle `theta`.
   static Point polar(double r, double theta);
@@ -79,10 +95,11 @@ class Hyperbolic {
   // ---- the Geometry concept ---------------------------------------------------------------
   /// The domain's vertices (counter-clockwise) on the hyperboloid.
   [[nodiscard]] const std::vector<Point>& domain() const { return domain_; }
-  /// The chart centre (on the hyperboloid), the boost taking (0,0,1) to it, and the domain
-  /// polygon in the re-centred Klein chart.
+  /// The chart centre: the domain's vertex sum, normalised onto the hyperboloid.
   [[nodiscard]] const Point& center() const { return center_; }
+  /// The Lorentz boost B taking (0, 0, 1) to center() (boost_to(center())).
   [[nodiscard]] const Eigen::Matrix3d& boost() const { return boost_; }
+  /// The domain polygon in the re-centred Klein chart (Klein coordinates of B⁻¹x).
   [[nodiscard]] const ConvexPolygon& chart_domain() const { return chart_domain_; }
   /// The hyperbolic area of the domain (exact).
   [[nodiscard]] double domain_area() const;
@@ -90,6 +107,8 @@ class Hyperbolic {
   /// re-centred Klein chart, whose area element is dk / (1 − |k|²)^{3/2}); deterministic per seed.
   [[nodiscard]] std::vector<Point> uniform_samples(std::size_t count, std::uint64_t seed) const;
 
+  /// ln(−⟨x, y⟩_M) = ln cosh d(x, y), computed as ln(1 + ½⟨x − y, x − y⟩_M): accurate for nearby
+  /// points too.
   [[nodiscard]] static double cost(const Point& x, const Point& y);
   /// Throws InputError naming `sites[i]` for a non-finite coordinate, a point off the
   /// hyperboloid's upper sheet, or a duplicate site.
@@ -98,6 +117,9 @@ class Hyperbolic {
   /// h_i = −½ ln(1 − |z_i|²) + ln(1 − τ|z_i|²); then u_i = 2τ z_i / (1 + τ|z_i|²) ∈ W_i, and τ ≤ 1 is
   /// chosen so that every u_i lies inside the domain: every cell is non-empty.
   [[nodiscard]] Eigen::VectorXd default_weights(std::span<const Point> sites) const;
+  /// The Laguerre diagram of the sites with weights h over the domain (one cell per site, possibly
+  /// empty), built in the re-centred Klein chart; boundary edges carry boundary_label(k) for edge
+  /// k of domain().
   [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
   /// With `stop_at_empty_cell`, the builder may stop at the first empty cell (see the solver's
   /// line search) and leave the cells it has not built empty.

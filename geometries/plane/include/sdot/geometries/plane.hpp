@@ -15,20 +15,27 @@
 
 namespace sdot {
 
+/// The Euclidean plane with cost |x − y|²/2 and a convex polygon source domain: a model of
+/// `Geometry` and `ProjectiveGeometry` (docs/plane.md). Weights ψ: cell i is
+/// {x : |x − y_i|²/2 − ψ_i ≤ |x − y_j|²/2 − ψ_j ∀j}. Sites may lie outside the domain.
 class Plane {
  public:
-  using Point = Eigen::Vector2d;
+  using Point = Eigen::Vector2d;  ///< a point (x, y) of the plane
 
   /// The unit square [0, 1]².
   Plane();
+  /// The source domain `domain` (already validated by ConvexPolygon).
   explicit Plane(ConvexPolygon domain);
 
+  /// "plane", the geometry's name in problem files and on the command line.
   static constexpr std::string_view name() { return "plane"; }
   /// The projective chart is affine (to_projective is linear in x): polynomial densities make
   /// polynomial integrands, which fixed-order quadrature integrates exactly.
   static constexpr bool affine_chart = true;
+  /// The source domain, counter-clockwise.
   [[nodiscard]] const ConvexPolygon& domain() const { return domain_; }
 
+  /// The transport cost c(x, y) = |x − y|²/2.
   [[nodiscard]] static double cost(const Point& x, const Point& y) { return (x - y).squaredNorm() / 2; }
   /// Throws InputError for a non-finite coordinate or a duplicate site (naming both indices).
   void validate_sites(std::span<const Point> sites) const;
@@ -39,14 +46,19 @@ class Plane {
   /// `count` points uniform in the domain, drawn from std::mt19937_64(seed) by rejection from its
   /// bounding box (x before y): the sites of `sdot bench` and `python -m sdot.bench`.
   [[nodiscard]] std::vector<Point> uniform_samples(std::size_t count, std::uint64_t seed) const;
+  /// The power diagram of the sites with weights ψ, clipped to the domain (one cell per site,
+  /// possibly empty); boundary edges carry boundary_label(k) for edge k of domain().
   [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
   /// With `stop_at_empty_cell`, the builder may stop at the first empty cell (see the solver's
   /// line search) and leave the cells it has not built empty.
   [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights,
                                              bool stop_at_empty_cell) const;
 
-  /// Exact area, first moment and ∫|x − y|²/2 of a polygon.
+  /// Exact area, first moment and ∫|x − y|²/2 of a polygon. The cost comes with the second
+  /// moment at no extra cost, so it is computed whatever `with_cost`.
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site, bool with_cost = true) const;
+  /// ∫ρ, ∫xρ and (with `with_cost`) ∫|x − y|²/2 ρ over the cell, by triangle_rule(order) on the
+  /// triangles of a fan from its first vertex.
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site,
                                                const ScalarField<Point>& rho, int order, bool with_cost = true) const;
   /// |ab| / |y_i − y_j|.
@@ -56,6 +68,7 @@ class Plane {
   [[nodiscard]] double facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i,
                                     const Point& site_j, double weight_j, const ScalarField<Point>& rho,
                                     int order) const;
+  /// The centroid M / m from the first moment M and mass m.
   [[nodiscard]] Point centroid(const CellIntegrals<Point>& integrals) const {
     return integrals.first_moment / integrals.mass;
   }
@@ -68,6 +81,7 @@ class Plane {
     result << (x - chart_origin_) / chart_scale_, 1.0;
     return result;
   }
+  /// The inverse of to_projective: o + s·(x₁, x₂)/x₃.
   [[nodiscard]] Point from_projective(const Eigen::Vector3d& x) const {
     return chart_origin_ + chart_scale_ * x.head<2>() / x.z();
   }

@@ -12,8 +12,8 @@ namespace sdot {
 /// A polygon with holes in the plane: an outer ring and hole rings (any orientation, not closed:
 /// the first vertex is not repeated).
 struct PolygonWithHoles {
-  std::vector<Eigen::Vector2d> outer;
-  std::vector<std::vector<Eigen::Vector2d>> holes;
+  std::vector<Eigen::Vector2d> outer;               ///< the outer ring
+  std::vector<std::vector<Eigen::Vector2d>> holes;  ///< the hole rings (possibly none)
 };
 
 /// A region of the plane: the union of polygons with holes.
@@ -27,14 +27,17 @@ struct PolygonWithHoles {
 /// points. Overlapping or touching polygons are merged (Boost.Geometry's union).
 class PlaneRegion {
  public:
+  /// \param polygons  the polygons (at least one); they may overlap or touch.
   /// \param field  the name of the input, used in error messages (`<field>.polygons[i]...`).
   explicit PlaneRegion(std::vector<PolygonWithHoles> polygons, const std::string& field = "domain");
 
   /// The exact area (shoelace formula over the normalised rings).
   [[nodiscard]] double area() const { return area_; }
+  /// The centroid of the region's area.
   [[nodiscard]] Eigen::Vector2d centroid() const { return centroid_; }
-  /// Axis-aligned bounding box corners.
+  /// The lower-left corner of the axis-aligned bounding box.
   [[nodiscard]] Eigen::Vector2d lower() const { return lower_; }
+  /// The upper-right corner of the axis-aligned bounding box.
   [[nodiscard]] Eigen::Vector2d upper() const { return upper_; }
   /// True when `x` is inside the region or on its boundary.
   [[nodiscard]] bool contains(const Eigen::Vector2d& x) const;

@@ -31,11 +31,19 @@
 
 namespace sdot {
 
+/// The unit sphere with the cost −ln⟨x, y⟩ and heights h as weights (see the file's description
+/// and docs/sphere.md): a model of `Geometry` and `ProjectiveGeometry`. The source domain is the
+/// whole sphere, a cap or a convex spherical polygon.
 class Sphere {
  public:
-  using Point = Eigen::Vector3d;
+  using Point = Eigen::Vector3d;  ///< a point of the sphere as a unit vector of R³
 
-  enum class Domain { sphere, cap, polygon };
+  /// The kind of source domain.
+  enum class Domain {
+    sphere,  ///< the whole sphere
+    cap,     ///< a spherical cap (cap())
+    polygon  ///< a convex spherical polygon (polygon())
+  };
   /// How the whole-sphere diagram is built (both give the same cells up to rounding).
   enum class Builder {
     automatic,  ///< the default: currently `hull`
@@ -48,39 +56,47 @@ class Sphere {
 
   /// The whole sphere.
   Sphere() = default;
-  /// The cap {x : ⟨x, center⟩ ≥ cos angle}, 0 < angle < π/2. Throws InputError("domain", ...).
+  /// The cap {x : ⟨x, center⟩ ≥ cos angle}, 0 < angle < π/2 (`center` is normalised). Throws
+  /// InputError naming `domain.center` (zero or not finite) or `domain.angle` (out of range).
   static Sphere cap(const Point& center, double angle);
   /// The convex spherical polygon with these vertices (either orientation, great-circle edges),
   /// lying in an open hemisphere. Throws InputError naming the vertex.
   static Sphere polygon(std::vector<Point> vertices);
 
+  /// "sphere", the geometry's name in problem files and on the command line.
   static constexpr std::string_view name() { return "sphere"; }
+  /// Which kind of source domain this is.
   [[nodiscard]] Domain domain() const { return domain_; }
   /// Cap centre, or the centre of the polygon's chart (normalised vertex sum).
   [[nodiscard]] const Point& center() const { return center_; }
+  /// The cap's angular radius in radians (0 for the other domains).
   [[nodiscard]] double cap_angle() const { return angle_; }
   /// Polygon vertices, counter-clockwise seen from outside.
   [[nodiscard]] const std::vector<Point>& polygon_vertices() const { return vertices_; }
   /// Area of the source domain (4π for the whole sphere).
   [[nodiscard]] double domain_area() const;
 
+  /// Chooses how whole-sphere diagrams are built (caps and polygons have a single builder).
   void set_builder(Builder builder) { builder_ = builder; }
   /// The builder named "automatic", "clipping" or "hull"; InputError (field `builder`) otherwise.
   static Builder builder_from_name(std::string_view name);
+  /// The whole-sphere builder in use (see set_builder()).
   [[nodiscard]] Builder builder() const { return builder_; }
 
-  /// −ln⟨x, y⟩ for unit vectors (+∞ when ⟨x, y⟩ ≤ 0); accurate for nearby points.
+  /// −ln⟨x, y⟩ of the normalised x and y (+∞ when ⟨x, y⟩ ≤ 0); accurate for nearby points.
   [[nodiscard]] static double cost(const Point& x, const Point& y);
   /// Throws InputError for a zero vector, a non-finite coordinate or a duplicate (after
   /// normalisation) naming the site, and for sites that cannot cover the domain: all in a closed
   /// hemisphere (whole sphere), or some domain point at distance ≥ π/2 from every site.
   void validate_sites(std::span<const Point> sites) const;
-  /// h = 0 (Voronoi) on the whole sphere; on a cap or polygon, math.md §3 "S²-cap" heights
-  /// whose cells are all non-empty (when every site lies in the open hemisphere around center()).
   /// `count` points uniform on the whole sphere (normalised Gaussian triples from
   /// std::mt19937_64(seed)): the sites of `sdot bench` and `python -m sdot.bench`.
   [[nodiscard]] static std::vector<Point> uniform_samples(std::size_t count, std::uint64_t seed);
+  /// h = 0 (Voronoi) on the whole sphere; on a cap or polygon, math.md §3 "S²-cap" heights
+  /// whose cells are all non-empty (when every site lies in the open hemisphere around center()).
   [[nodiscard]] Eigen::VectorXd default_weights(std::span<const Point> sites) const;
+  /// The Laguerre diagram of the sites with heights `weights` over the source domain (one cell
+  /// per site, possibly empty), by the builder() on the whole sphere.
   [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
   /// With `stop_at_empty_cell`, the builder may stop once it finds an empty cell and leave the
   /// cells it has not built empty: the solver's line search rejects any step that empties a
@@ -109,6 +125,7 @@ class Sphere {
   /// the origin. A "linear" density piece is linear on the flat triangle through its corners,
   /// centrally projected (the paper's piecewise-linear μ).
   [[nodiscard]] static Eigen::Vector3d to_projective(const Point& x) { return x; }
+  /// The point x / |x| (x ≠ 0).
   [[nodiscard]] static Point from_projective(const Eigen::Vector3d& x) { return x.normalized(); }
 
   /// True when edge `label` of a cell is an arc of the cap's boundary circle (not a great arc).

@@ -1,0 +1,352 @@
+#!/usr/bin/python3
+"""Runs every benchmark of docs/benchmarks.md and regenerates its tables and the scaling plot.
+
+    /usr/bin/python3 scripts/bench.py [--quick] [--build build] [--doc docs/benchmarks.md]
+                                      [--sections core python densities param] [--sizes N ...]
+                                      [--meshes DIR] [--json FILE]
+
+Without --quick it rewrites the generated blocks of the document (between
+`<!-- bench:NAME -->` and `<!-- /bench:NAME -->`) and docs/images/scaling.png. With --quick it runs
+a smaller set (N up to 10^5, meshes up to 15,000 vertices, no density-mesh rows) in a few minutes
+and only prints the tables. Every row is one command, printed above its table; the machine, the
+date and the commit go into the `machine` block.
+
+The shared meshes (../shared/meshes) and the independent evaluator
+(../shared/tools/eval_sphere_map.py) are used when they exist; the parameterization table is
+skipped when they do not.
+"""
+import argparse
+import datetime
+import json
+import math
+import os
+import pathlib
+import platform
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+GEOMETRIES = ["plane", "sphere", "hyperbolic"]
+
+
+def log(message):
+    print(message, file=sys.stderr, flush=True)
+
+
+def run_measured(command, env=None):
+    """Runs a command; returns (stdout, wall seconds)."""
+    start = time.perf_counter()
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    stdout, stderr = process.communicate()
+    wall = time.perf_counter() - start
+    if process.returncode != 0:
+        raise RuntimeError(f"{' '.join(map(str, command))} exited with {process.returncode}: {stderr.strip()}")
+    return stdout, wall
+
+
+def peak_rss_mb(command, env=None):
+    """Wall seconds and peak RSS (MB) of one run, measured by wait4 for this child only."""
+    start = time.perf_counter()
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
+    _, status, usage = os.wait4(process.pid, 0)
+    wall = time.perf_counter() - start
+    process.returncode = os.waitstatus_to_exitcode(status)
+    stderr = process.stderr.read().decode(errors="replace")
+    process.stderr.close()
+    if process.returncode != 0:
+        raise RuntimeError(f"{' '.join(map(str, command))} exited with {process.returncode}: {stderr.strip()}")
+    return wall, usage.ru_maxrss / 1024
+
+
+def json_line(stdout, command):
+    lines = [line for line in stdout.splitlines() if line.startswith("{")]
+    if not lines:
+        raise RuntimeError(f"no JSON line from {' '.join(map(str, command))}")
+    return json.loads(lines[-1])
+
+
+def shell(command):
+    return " ".join(str(part) for part in command)
+
+
+# ---------------------------------------------------------------------------------------- machine
+
+
+def machine_block(build):
+    def first(pattern, text, default="?"):
+        match = re.search(pattern, text, re.MULTILINE)
+        return match.group(1).strip() if match else default
+
+    cpu = first(r"^Model name:\s*(.+)$", subprocess.run(["lscpu"], capture_output=True, text=True).stdout)
+    memory_kb = int(first(r"^MemTotal:\s*(\d+)", pathlib.Path("/proc/meminfo").read_text(), "0"))
+    compiler = "?"
+    cache = build / "CMakeCache.txt"
+    if cache.exists():
+        cxx = first(r"^CMAKE_CXX_COMPILER:\w+=(.+)$", cache.read_text())
+        if cxx != "?":
+            compiler = subprocess.run([cxx, "--version"], capture_output=True, text=True).stdout.splitlines()[0]
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                            cwd=ROOT).stdout.strip()
+    # changes to the documents (this one included) do not change what was measured
+    dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".", ":!docs"],
+                           capture_output=True, text=True, cwd=ROOT).stdout.strip()
+    return "\n".join([
+        "| | |",
+        "|---|---|",
+        f"| CPU | {cpu}, {os.cpu_count()} cores |",
+        f"| memory | {memory_kb / 1024 ** 2:.0f} GiB |",
+        f"| system | {platform.system()} {platform.release()} |",
+        f"| compiler | {compiler}, Release build (`scripts/build.sh`) |",
+        f"| commit | {commit}{' with local changes' if dirty else ''} |",
+        f"| date | {datetime.date.today().isoformat()} |",
+    ])
+
+
+# ------------------------------------------------------------------------------------- core solve
+
+
+def core_command(sdot, geometry, n):
+    return [sdot, "bench", "--geometry", geometry, "--n", str(n), "--tolerance", "1e-6", "--quiet"]
+
+
+def core_rows(sdot, sizes, repeats_small):
+    rows = []
+    for geometry in GEOMETRIES:
+        for n in sizes:
+            command = core_command(sdot, geometry, n)
+            runs = []
+            for _ in range(repeats_small if n <= 100_000 else 1):
+                stdout, _ = run_measured(command)
+                runs.append(json_line(stdout, command))
+            # the run of median total time stands for the row, so its stages add up
+            runs.sort(key=lambda r: r["time_s"])
+            row = dict(runs[len(runs) // 2], runs=len(runs))
+            if row.get("status") not in ("converged", "precision_floor"):
+                log(f"{geometry} N={n}: status {row.get('status')}")
+            rows.append(row)
+            log(f"core {geometry:10s} {n:>10,}  {row['time_s']:8.2f} s  {row['peak_rss_mb']:7.0f} MB")
+    return rows
+
+
+def core_table(rows):
+    lines = ["| geometry | N | time (s) | diagram (s) | assembly (s) | linear solve (s) | iterations "
+             "| peak RSS (MB) | max rel. mass error | runs |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['geometry']} | {r['n']:,} | **{r['time_s']:.2f}** | {r['diagram_s']:.2f} | "
+                     f"{r['assembly_s']:.2f} | {r['linear_solve_s']:.2f} | {r['iterations']} | "
+                     f"{r['peak_rss_mb']:.0f} | {r['max_relative_mass_error']:.1e} | {r['runs']} |")
+    return "\n".join(lines)
+
+
+def memory_table(rows):
+    lines = ["| geometry | N | peak RSS (MB) | per site (bytes) |", "|---|---|---|---|"]
+    for r in rows:
+        if r["n"] >= 100_000:
+            lines.append(f"| {r['geometry']} | {r['n']:,} | {r['peak_rss_mb']:.0f} | "
+                         f"{r['peak_rss_mb'] * 2 ** 20 / r['n']:,.0f} |")
+    return "\n".join(lines)
+
+
+def scaling_plot(rows, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(figsize=(6.4, 4.4))
+    for geometry in dict.fromkeys(r["geometry"] for r in rows):
+        points = sorted((r["n"], r["time_s"]) for r in rows if r["geometry"] == geometry)
+        ns, times = zip(*points)
+        line, = axes.loglog(ns, times, "o-", label=geometry)
+        # N log N through the largest run: the slope a solve of that cost would follow
+        n_top, t_top = points[-1]
+        reference = [t_top * n * math.log(n) / (n_top * math.log(n_top)) for n in ns]
+        axes.loglog(ns, reference, "--", color=line.get_color(), alpha=0.5, linewidth=1)
+    axes.set_xlabel("sites N")
+    axes.set_ylabel("solve time (s), tolerance 1e-6")
+    axes.set_title(f"sdot bench on {os.cpu_count()} cores (dashed: N log N)")
+    axes.grid(True, which="both", alpha=0.3)
+    axes.legend()
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+
+
+# --------------------------------------------------------------------------------- python package
+
+
+def python_rows(build, sdot, n):
+    env = dict(os.environ, PYTHONPATH=str(build / "python"))
+    rows = []
+    for geometry in GEOMETRIES:
+        command = [sys.executable, "-m", "sdot.bench", "--geometry", geometry, "--n", str(n), "--quiet"]
+        stdout, _ = run_measured(command, env)
+        python = json_line(stdout, command)
+        command = [sdot, "bench", "--geometry", geometry, "--n", str(n), "--quiet"]
+        stdout, _ = run_measured(command)
+        native = json_line(stdout, command)
+        rows.append((python, native))
+        log(f"python {geometry:10s} overhead {python['python_overhead_s']:.3f} s")
+    return rows
+
+
+def python_table(rows):
+    lines = ["| geometry | N | Python `time_s` | Python overhead | overhead / time | peak RSS (MB) "
+             "| command's peak RSS (MB) | iterations (Python / command) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for python, native in rows:
+        lines.append(f"| {python['geometry']} | {python['n']:,} | {python['time_s']:.2f} s | "
+                     f"{python['python_overhead_s']:.3f} s | "
+                     f"{100 * python['python_overhead_s'] / python['time_s']:.1f} % | "
+                     f"{python['peak_rss_mb']:.0f} | {native['peak_rss_mb']:.0f} | "
+                     f"{python['iterations']} / {native['iterations']} |")
+    return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------- densities from data
+
+
+def density_rows(sdot, n, triangles):
+    rows = []
+    for geometry in GEOMETRIES:
+        command = core_command(sdot, geometry, n)[:-1] + ["--density-triangles", str(triangles), "--quiet"]
+        stdout, _ = run_measured(command)
+        rows.append(json_line(stdout, command))
+        log(f"density {geometry:10s} {rows[-1]['time_s']:8.2f} s")
+    return rows
+
+
+def density_table(rows):
+    lines = ["| geometry | N | triangles | density build (s) | time (s) | diagram (s) | assembly (s) "
+             "| linear solve (s) | iterations | peak RSS (MB) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['geometry']} | {r['n']:,} | {r['density_triangles']:,} | {r['density_build_s']:.2f} | "
+                     f"**{r['time_s']:.2f}** | {r['diagram_s']:.2f} | {r['assembly_s']:.2f} | "
+                     f"{r['linear_solve_s']:.2f} | {r['iterations']} | {r['peak_rss_mb']:.0f} |")
+    return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------- spherical parameterization
+
+
+def param_rows(build, meshes, evaluator, max_vertices):
+    binary = build / "bin" / "sdot-sphere-param"
+    entries = []
+    for path in sorted(meshes.glob("*.off")):
+        with open(path) as mesh:
+            header = mesh.readline().strip()
+            counts = header[3:].split() if len(header) > 3 else mesh.readline().split()
+        entries.append((int(counts[0]), path))
+    rows = []
+    with tempfile.TemporaryDirectory() as scratch:
+        for vertices, path in sorted(entries):
+            if vertices > max_vertices:
+                continue
+            output = pathlib.Path(scratch) / f"{path.stem}.off"
+            report_path = pathlib.Path(scratch) / f"{path.stem}.json"
+            wall, rss = peak_rss_mb([binary, path, "-o", output, "--report", report_path, "--quiet"])
+            report = json.loads(report_path.read_text())
+            metrics = report["final_map"]
+            source = "report"
+            if evaluator:
+                command = [sys.executable, evaluator, path, output, "--json"]
+                metrics = json_line(run_measured(command)[0], command)
+                source = "evaluator"
+            rows.append(dict(mesh=path.stem, vertices=vertices, wall=wall, rss=rss, report=report,
+                             metrics=metrics, source=source))
+            log(f"param {path.stem:16s} {vertices:>8,}  {wall:6.2f} s  flips {metrics['flips']}")
+    return rows
+
+
+def param_table(rows):
+    lines = ["| mesh | V | time (s) | peak RSS (MB) | area mean\\|d\\| | std | max\\|d\\| | angle (°) | flips "
+             "| Newton it | initial map (s) | OT (s) | untangling (s) | area opt. (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        m, times = r["metrics"], r["report"]["times"]
+        untangle = times.get("untangle_regularized_s", 0) + times.get("untangle_laplacian_s", 0)
+        lines.append(f"| {r['mesh']} | {r['vertices']:,} | **{r['wall']:.2f}** | {r['rss']:.0f} | "
+                     f"{m['area_mean_abs']:.4f} | {m['area_std']:.3f} | {m['area_max_abs']:.3f} | "
+                     f"{m['angle_mean_abs_deg']:.1f} | **{m['flips']}** | "
+                     f"{r['report']['ot']['newton_iterations']} | {times['initial_map_s']:.2f} | "
+                     f"{times['ot_centroids_s']:.2f} | {untangle:.2f} | {times['area_optimization_s']:.2f} |")
+    return "\n".join(lines)
+
+
+# ------------------------------------------------------------------------------------- the document
+
+
+def replace_block(text, name, content):
+    pattern = re.compile(rf"(<!-- bench:{name} -->\n).*?(<!-- /bench:{name} -->)", re.DOTALL)
+    if not pattern.search(text):
+        raise RuntimeError(f"the document has no block <!-- bench:{name} --> … <!-- /bench:{name} -->")
+    return pattern.sub(lambda m: m.group(1) + content + "\n" + m.group(2), text)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="smaller set, print only")
+    parser.add_argument("--build", default="build")
+    parser.add_argument("--doc", default="docs/benchmarks.md")
+    parser.add_argument("--plot", default="docs/images/scaling.png")
+    parser.add_argument("--sections", nargs="+", default=["core", "python", "densities", "param"],
+                        choices=["core", "python", "densities", "param"])
+    parser.add_argument("--sizes", type=int, nargs="+", help="core-solve sizes (default 1e3 … 1e6)")
+    parser.add_argument("--meshes", default=str(ROOT.parent / "shared" / "meshes"))
+    parser.add_argument("--json", help="also write every raw figure here")
+    args = parser.parse_args()
+
+    os.chdir(ROOT)
+    build = pathlib.Path(args.build)
+    sdot = build / "bin" / "sdot"
+    if not sdot.exists():
+        sys.exit(f"{sdot} not found: build first (scripts/build.sh) or pass --build DIR")
+    sizes = args.sizes or ([1000, 10_000, 100_000] if args.quick else [1000, 10_000, 100_000, 1_000_000])
+    blocks, raw = {"machine": machine_block(build)}, {}
+
+    if "core" in args.sections:
+        rows = core_rows(str(sdot), sizes, repeats_small=1 if args.quick else 3)
+        raw["core"] = rows
+        blocks["core"] = core_table(rows)
+        blocks["memory"] = memory_table(rows)
+        if not args.quick:
+            scaling_plot(rows, args.plot)
+    if "python" in args.sections:
+        rows = python_rows(build, str(sdot), 10_000 if args.quick else 100_000)
+        raw["python"] = rows
+        blocks["python"] = python_table(rows)
+    if "densities" in args.sections and not args.quick:
+        rows = density_rows(str(sdot), 100_000, 1_000_000)
+        raw["densities"] = rows
+        blocks["densities"] = density_table(rows)
+    if "param" in args.sections:
+        meshes = pathlib.Path(args.meshes)
+        evaluator = meshes.parent / "tools" / "eval_sphere_map.py"
+        if meshes.is_dir():
+            rows = param_rows(build, meshes, evaluator if evaluator.exists() else None,
+                              15_000 if args.quick else 10 ** 9)
+            raw["param"] = [{k: v for k, v in r.items() if k != "report"} | {"times": r["report"]["times"]}
+                            for r in rows]
+            blocks["param"] = param_table(rows)
+        else:
+            log(f"{meshes} not found: parameterization table skipped")
+
+    if args.json:
+        pathlib.Path(args.json).write_text(json.dumps(raw, indent=1))
+    for name, content in blocks.items():
+        print(f"\n## {name}\n\n{content}")
+    if not args.quick:
+        doc = pathlib.Path(args.doc)
+        text = doc.read_text()
+        for name, content in blocks.items():
+            text = replace_block(text, name, content)
+        doc.write_text(text)
+        log(f"{doc} updated: {', '.join(blocks)}")
+
+
+if __name__ == "__main__":
+    main()

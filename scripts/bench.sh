@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# Runs every benchmark of docs/benchmarks.md and regenerates its tables and docs/images/scaling.png.
+#   scripts/bench.sh [--quick] [--build DIR] [other options of scripts/bench.py]
+# --quick: N up to 1e5 and meshes up to 15k vertices, tables printed only (a few minutes).
+# The full run took 2.6 minutes on the 2-core machine of docs/benchmarks.md; run it on an otherwise idle machine.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+exec /usr/bin/python3 scripts/bench.py "$@"
