@@ -48,18 +48,21 @@ def run_measured(command, env=None):
     return stdout, wall
 
 
-def peak_rss_mb(command, env=None):
-    """Wall seconds and peak RSS (MB) of one run, measured by wait4 for this child only."""
-    start = time.perf_counter()
-    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
-    _, status, usage = os.wait4(process.pid, 0)
-    wall = time.perf_counter() - start
-    process.returncode = os.waitstatus_to_exitcode(status)
-    stderr = process.stderr.read().decode(errors="replace")
-    process.stderr.close()
-    if process.returncode != 0:
-        raise RuntimeError(f"{' '.join(map(str, command))} exited with {process.returncode}: {stderr.strip()}")
-    return wall, usage.ru_maxrss / 1024
+def wall_and_peak_rss(command):
+    """Wall seconds and peak RSS in MB (None without GNU time) of one run. The RSS comes from
+    /usr/bin/time: a child forked from this interpreter would report the interpreter's own
+    high-water mark from before exec whenever that is larger."""
+    with tempfile.NamedTemporaryFile("r") as rss_file:
+        gnu_time = pathlib.Path("/usr/bin/time")
+        prefix = [str(gnu_time), "-f", "%M", "-o", rss_file.name] if gnu_time.exists() else []
+        start = time.perf_counter()
+        process = subprocess.run(prefix + [str(part) for part in command], stdout=subprocess.DEVNULL,
+                                 stderr=subprocess.PIPE, text=True)
+        wall = time.perf_counter() - start
+        if process.returncode != 0:
+            raise RuntimeError(f"{shell(command)} exited with {process.returncode}: {process.stderr.strip()}")
+        rss = rss_file.read().strip().splitlines()
+    return wall, (int(rss[-1]) / 1024 if prefix and rss else None)
 
 
 def json_line(stdout, command):
@@ -248,7 +251,7 @@ def param_rows(build, meshes, evaluator, max_vertices):
                 continue
             output = pathlib.Path(scratch) / f"{path.stem}.off"
             report_path = pathlib.Path(scratch) / f"{path.stem}.json"
-            wall, rss = peak_rss_mb([binary, path, "-o", output, "--report", report_path, "--quiet"])
+            wall, rss = wall_and_peak_rss([binary, path, "-o", output, "--report", report_path, "--quiet"])
             report = json.loads(report_path.read_text())
             metrics = report["final_map"]
             source = "report"
@@ -269,7 +272,8 @@ def param_table(rows):
     for r in rows:
         m, times = r["metrics"], r["report"]["times"]
         untangle = times.get("untangle_regularized_s", 0) + times.get("untangle_laplacian_s", 0)
-        lines.append(f"| {r['mesh']} | {r['vertices']:,} | **{r['wall']:.2f}** | {r['rss']:.0f} | "
+        rss = "–" if r["rss"] is None else f"{r['rss']:.0f}"
+        lines.append(f"| {r['mesh']} | {r['vertices']:,} | **{r['wall']:.2f}** | {rss} | "
                      f"{m['area_mean_abs']:.4f} | {m['area_std']:.3f} | {m['area_max_abs']:.3f} | "
                      f"{m['angle_mean_abs_deg']:.1f} | **{m['flips']}** | "
                      f"{r['report']['ot']['newton_iterations']} | {times['initial_map_s']:.2f} | "
