@@ -23,7 +23,6 @@ import os
 import pathlib
 import platform
 import re
-import statistics
 import subprocess
 import sys
 import tempfile
@@ -74,6 +73,13 @@ def json_line(stdout, command):
 
 def shell(command):
     return " ".join(str(part) for part in command)
+
+
+def markdown_table(columns, rows):
+    """A markdown table: a header of column names, then one line per row of cell strings."""
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(lines)
 
 
 # ---------------------------------------------------------------------------------------- machine
@@ -136,23 +142,18 @@ def core_rows(sdot, sizes, repeats_small):
 
 
 def core_table(rows):
-    lines = ["| geometry | N | time (s) | diagram (s) | assembly (s) | linear solve (s) | iterations "
-             "| peak RSS (MB) | max rel. mass error | runs |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
-    for r in rows:
-        lines.append(f"| {r['geometry']} | {r['n']:,} | **{r['time_s']:.2f}** | {r['diagram_s']:.2f} | "
-                     f"{r['assembly_s']:.2f} | {r['linear_solve_s']:.2f} | {r['iterations']} | "
-                     f"{r['peak_rss_mb']:.0f} | {r['max_relative_mass_error']:.1e} | {r['runs']} |")
-    return "\n".join(lines)
+    columns = ["geometry", "N", "time (s)", "diagram (s)", "assembly (s)", "linear solve (s)", "iterations",
+               "peak RSS (MB)", "max rel. mass error", "runs"]
+    return markdown_table(columns, [
+        [r["geometry"], f"{r['n']:,}", f"**{r['time_s']:.2f}**", f"{r['diagram_s']:.2f}", f"{r['assembly_s']:.2f}",
+         f"{r['linear_solve_s']:.2f}", str(r["iterations"]), f"{r['peak_rss_mb']:.0f}",
+         f"{r['max_relative_mass_error']:.1e}", str(r["runs"])] for r in rows])
 
 
 def memory_table(rows):
-    lines = ["| geometry | N | peak RSS (MB) | per site (bytes) |", "|---|---|---|---|"]
-    for r in rows:
-        if r["n"] >= 100_000:
-            lines.append(f"| {r['geometry']} | {r['n']:,} | {r['peak_rss_mb']:.0f} | "
-                         f"{r['peak_rss_mb'] * 2 ** 20 / r['n']:,.0f} |")
-    return "\n".join(lines)
+    return markdown_table(["geometry", "N", "peak RSS (MB)", "per site (bytes)"], [
+        [r["geometry"], f"{r['n']:,}", f"{r['peak_rss_mb']:.0f}", f"{r['peak_rss_mb'] * 2 ** 20 / r['n']:,.0f}"]
+        for r in rows if r["n"] >= 100_000])
 
 
 def scaling_plot(rows, path):
@@ -197,16 +198,13 @@ def python_rows(build, sdot, n):
 
 
 def python_table(rows):
-    lines = ["| geometry | N | Python `time_s` | Python overhead | overhead / time | peak RSS (MB) "
-             "| command's peak RSS (MB) | iterations (Python / command) |",
-             "|---|---|---|---|---|---|---|---|"]
-    for python, native in rows:
-        lines.append(f"| {python['geometry']} | {python['n']:,} | {python['time_s']:.2f} s | "
-                     f"{python['python_overhead_s']:.3f} s | "
-                     f"{100 * python['python_overhead_s'] / python['time_s']:.1f} % | "
-                     f"{python['peak_rss_mb']:.0f} | {native['peak_rss_mb']:.0f} | "
-                     f"{python['iterations']} / {native['iterations']} |")
-    return "\n".join(lines)
+    columns = ["geometry", "N", "Python `time_s`", "Python overhead", "overhead / time", "peak RSS (MB)",
+               "command's peak RSS (MB)", "iterations (Python / command)"]
+    return markdown_table(columns, [
+        [python["geometry"], f"{python['n']:,}", f"{python['time_s']:.2f} s", f"{python['python_overhead_s']:.3f} s",
+         f"{100 * python['python_overhead_s'] / python['time_s']:.1f} %", f"{python['peak_rss_mb']:.0f}",
+         f"{native['peak_rss_mb']:.0f}", f"{python['iterations']} / {native['iterations']}"]
+        for python, native in rows])
 
 
 # ----------------------------------------------------------------------------- densities from data
@@ -223,14 +221,12 @@ def density_rows(sdot, n, triangles):
 
 
 def density_table(rows):
-    lines = ["| geometry | N | triangles | density build (s) | time (s) | diagram (s) | assembly (s) "
-             "| linear solve (s) | iterations | peak RSS (MB) |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
-    for r in rows:
-        lines.append(f"| {r['geometry']} | {r['n']:,} | {r['density_triangles']:,} | {r['density_build_s']:.2f} | "
-                     f"**{r['time_s']:.2f}** | {r['diagram_s']:.2f} | {r['assembly_s']:.2f} | "
-                     f"{r['linear_solve_s']:.2f} | {r['iterations']} | {r['peak_rss_mb']:.0f} |")
-    return "\n".join(lines)
+    columns = ["geometry", "N", "triangles", "density build (s)", "time (s)", "diagram (s)", "assembly (s)",
+               "linear solve (s)", "iterations", "peak RSS (MB)"]
+    return markdown_table(columns, [
+        [r["geometry"], f"{r['n']:,}", f"{r['density_triangles']:,}", f"{r['density_build_s']:.2f}",
+         f"**{r['time_s']:.2f}**", f"{r['diagram_s']:.2f}", f"{r['assembly_s']:.2f}", f"{r['linear_solve_s']:.2f}",
+         str(r["iterations"]), f"{r['peak_rss_mb']:.0f}"] for r in rows])
 
 
 # ----------------------------------------------------------------------- spherical parameterization
@@ -266,19 +262,19 @@ def param_rows(build, meshes, evaluator, max_vertices):
 
 
 def param_table(rows):
-    lines = ["| mesh | V | time (s) | peak RSS (MB) | area mean\\|d\\| | std | max\\|d\\| | angle (°) | flips "
-             "| Newton it | initial map (s) | OT (s) | untangling (s) | area opt. (s) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    columns = ["mesh", "V", "time (s)", "peak RSS (MB)", "area mean\\|d\\|", "std", "max\\|d\\|", "angle (°)",
+               "flips", "Newton it", "initial map (s)", "OT (s)", "untangling (s)", "area opt. (s)"]
+    cells = []
     for r in rows:
         m, times = r["metrics"], r["report"]["times"]
         untangle = times.get("untangle_regularized_s", 0) + times.get("untangle_laplacian_s", 0)
-        rss = "–" if r["rss"] is None else f"{r['rss']:.0f}"
-        lines.append(f"| {r['mesh']} | {r['vertices']:,} | **{r['wall']:.2f}** | {rss} | "
-                     f"{m['area_mean_abs']:.4f} | {m['area_std']:.3f} | {m['area_max_abs']:.3f} | "
-                     f"{m['angle_mean_abs_deg']:.1f} | **{m['flips']}** | "
-                     f"{r['report']['ot']['newton_iterations']} | {times['initial_map_s']:.2f} | "
-                     f"{times['ot_centroids_s']:.2f} | {untangle:.2f} | {times['area_optimization_s']:.2f} |")
-    return "\n".join(lines)
+        cells.append([r["mesh"], f"{r['vertices']:,}", f"**{r['wall']:.2f}**",
+                      "–" if r["rss"] is None else f"{r['rss']:.0f}", f"{m['area_mean_abs']:.4f}",
+                      f"{m['area_std']:.3f}", f"{m['area_max_abs']:.3f}", f"{m['angle_mean_abs_deg']:.1f}",
+                      f"**{m['flips']}**", str(r["report"]["ot"]["newton_iterations"]),
+                      f"{times['initial_map_s']:.2f}", f"{times['ot_centroids_s']:.2f}", f"{untangle:.2f}",
+                      f"{times['area_optimization_s']:.2f}"])
+    return markdown_table(columns, cells)
 
 
 # ------------------------------------------------------------------------------------- the document
