@@ -2,14 +2,13 @@
 // checks and converts arguments and wraps results; everything numeric happens here.
 #include <pybind11/stl.h>
 
-#include <sys/resource.h>
-
 #include <chrono>
 #include <cstdio>
 
 #include "bindings.hpp"
 #include "mesh.hpp"
 #include "run.hpp"
+#include "sdot/resources.hpp"
 
 namespace py = pybind11;
 using namespace sdot::python;
@@ -192,12 +191,6 @@ void write_mesh(const std::string& path, const py::array_t<double>& vertices, co
   sphparam::write_mesh(path, read_mesh_arrays(vertices, faces), ply_ascii);
 }
 
-double peak_rss_mb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<double>(usage.ru_maxrss) / 1024.0;
-}
-
 }  // namespace
 
 PYBIND11_MODULE(_sdot, m) {
@@ -226,5 +219,5 @@ PYBIND11_MODULE(_sdot, m) {
   m.def("read_mesh", &read_mesh);
   m.def("write_mesh", &write_mesh);
   m.def("has_cholmod", &sdot::has_cholmod);
-  m.def("peak_rss_mb", &peak_rss_mb);
+  m.def("peak_rss_mb", &sdot::peak_resident_memory_mb);
 }

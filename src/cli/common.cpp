@@ -3,10 +3,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include <sys/resource.h>
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <set>
 
 namespace sdot::cli {
@@ -159,17 +157,6 @@ double read_scale(const json& density) {
   const double scale = read_number(density["scale"], "density.scale");
   if (!(scale > 0)) throw InputError("density.scale", "must be positive");
   return scale;
-}
-
-double peak_rss_mb() {
-  // VmHWM is this program's own high-water mark. ru_maxrss also keeps the parent's from before
-  // exec, so a command started by a large process (a Python benchmark driver) would report that.
-  std::ifstream status("/proc/self/status");
-  for (std::string line; std::getline(status, line);)
-    if (line.rfind("VmHWM:", 0) == 0) return std::strtod(line.c_str() + 6, nullptr) / 1024.0;
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<double>(usage.ru_maxrss) / 1024.0;
 }
 
 Svg::Svg(double x0, double y0, double x1, double y1, double width_px)

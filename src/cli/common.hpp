@@ -15,6 +15,7 @@
 #include "sdot/image.hpp"
 #include "sdot/options.hpp"
 #include "sdot/piecewise_density.hpp"
+#include "sdot/resources.hpp"
 #include "sdot/solver.hpp"
 
 namespace sdot::cli {
@@ -116,9 +117,6 @@ std::optional<PiecewiseDensity<G>> read_density(const G& geometry, const json& p
                       std::span<const std::array<int, 3>>(triangles), value_span, order, prefix);
 }
 
-/// Peak resident set size of this process in MB.
-double peak_rss_mb();
-
 template <class Point>
 json point_json(const Point& p) {
   json array = json::array();
@@ -192,7 +190,7 @@ json bench_json(const std::string& geometry, std::size_t n, const Result<Point>&
           {"diagram_s", s.timings.diagram_s},
           {"assembly_s", s.timings.assembly_s},
           {"linear_solve_s", s.timings.linear_solve_s},
-          {"peak_rss_mb", peak_rss_mb()}};
+          {"peak_rss_mb", peak_resident_memory_mb()}};
 }
 
 /// The benchmark: the uniform density, or (request.density_triangles > 0) the mesh density that
