@@ -19,7 +19,7 @@ endfunction()
 #   include/sdot/geometries/NAME.hpp    public header (installed)
 #   src/*.cpp                           library sources (added to sdot::sdot); src/*.hpp are
 #                                       private headers, visible to the geometry's tests
-#   cli/*.cpp                           the sdot command's adapter, defining
+#   cli/*.cpp                           the sdot command's adapter (in sdot_cli), defining
 #                                       `void sdot::cli::register_NAME(Registry&)`
 #   python/*.cpp                        the Python package's adapter, defining
 #                                       `void sdot::python::register_NAME(Registry&)`
@@ -33,7 +33,7 @@ function(sdot_add_geometry name)
   install(DIRECTORY ${dir}/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
   if(SDOT_BUILD_CLI)
     file(GLOB cli_sources CONFIGURE_DEPENDS ${dir}/cli/*.cpp)
-    target_sources(sdot_command PRIVATE ${cli_sources})
+    target_sources(sdot_cli PRIVATE ${cli_sources})
     set_property(GLOBAL APPEND PROPERTY SDOT_GEOMETRIES ${name})
   endif()
   if(SDOT_BUILD_PYTHON)
@@ -85,13 +85,29 @@ ${calls}}
   target_sources(${target} PRIVATE ${file})
 endfunction()
 
-# The sdot command's geometry registration.
+# The sdot command's geometry registration (in sdot_cli, which the command links).
 function(sdot_finish_cli)
-  sdot_generate_registration(sdot_command cli SDOT_GEOMETRIES)
+  sdot_generate_registration(sdot_cli cli SDOT_GEOMETRIES)
 endfunction()
 
 # The Python package's geometry registration and the parameterization it links.
 function(sdot_finish_python)
   sdot_generate_registration(sdot_python python SDOT_PYTHON_GEOMETRIES)
   target_link_libraries(sdot_python PRIVATE sdot_sphere_param_lib)
+endfunction()
+
+# Appends to the list OUT what a test that runs Debian's (unsanitized) Python on the sdot module
+# needs in a sanitized build. The ASan runtime must be loaded first, and the interpreter's own
+# allocations at exit are not ours to report. The C++ runtime is preloaded too: ASan's
+# interceptor of __cxa_throw finds the real one only if it is there at startup (otherwise the
+# first C++ exception aborts the interpreter).
+function(sdot_python_sanitizer_environment out)
+  if(SDOT_SANITIZE MATCHES "address")
+    execute_process(COMMAND ${CMAKE_CXX_COMPILER} -print-file-name=libasan.so OUTPUT_VARIABLE asan_runtime
+                    OUTPUT_STRIP_TRAILING_WHITESPACE)
+    execute_process(COMMAND ${CMAKE_CXX_COMPILER} -print-file-name=libstdc++.so OUTPUT_VARIABLE cxx_runtime
+                    OUTPUT_STRIP_TRAILING_WHITESPACE)
+    set(${out} ${${out}} "LD_PRELOAD=${asan_runtime}:${cxx_runtime}" "ASAN_OPTIONS=abort_on_error=1:detect_leaks=0"
+        PARENT_SCOPE)
+  endif()
 endfunction()

@@ -6,7 +6,8 @@ packages=(cmake g++ make libeigen3-dev libboost-dev libqhull-dev libcgal-dev lib
           nlohmann-json3-dev python3-numpy
           pybind11-dev python3-dev python3-pytest python3-matplotlib python3-setuptools python3-wheel python3-pip
           python3-venv
-          doxygen)
+          doxygen
+          clang-14 libfuzzer-14-dev libomp-14-dev)  # scripts/fuzz.sh (libFuzzer harnesses, tests/fuzz)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

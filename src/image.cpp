@@ -9,9 +9,11 @@
 #include <cstdio>
 #include <cstring>
 #include <memory>
+#include <span>
 #include <string_view>
 
 #include "sdot/error.hpp"
+#include "sdot/output_file.hpp"
 
 namespace sdot {
 namespace {
@@ -52,7 +54,7 @@ void check_size(const std::string& path, std::uint64_t width, std::uint64_t heig
 
 class PgmParser {
  public:
-  PgmParser(const std::string& path, const std::vector<unsigned char>& bytes) : path_(path), bytes_(bytes) {}
+  PgmParser(const std::string& path, std::span<const unsigned char> bytes) : path_(path), bytes_(bytes) {}
 
   GrayImage parse() {
     const bool ascii = bytes_[1] == '2';
@@ -151,7 +153,7 @@ class PgmParser {
   }
 
   const std::string& path_;
-  const std::vector<unsigned char>& bytes_;
+  std::span<const unsigned char> bytes_;
   std::size_t pos_ = 0;
 };
 
@@ -199,6 +201,9 @@ void on_png_write(png_structp png, png_bytep data, png_size_t length) {
 
 void on_png_flush(png_structp) {}
 
+/// Deflate expands its input at most 1032 times (a 258-byte match in 2 bits).
+constexpr std::uint64_t max_deflate_ratio = 1032;
+
 struct DecodedPng {
   std::uint32_t width = 0, height = 0;
   int channels = 0;   // 1 (gray) or 3 (RGB), after the transformations
@@ -206,6 +211,7 @@ struct DecodedPng {
   std::vector<unsigned char>* pixels = nullptr;
   std::vector<png_bytep>* rows = nullptr;
   bool too_large = false;
+  std::uint64_t data_needed = 0;  // > 0: the file is too short for the header's size (bytes of image data)
 };
 
 bool decode_png(png_structp png, png_infop info, DecodedPng* out) {
@@ -213,6 +219,11 @@ bool decode_png(png_structp png, png_infop info, DecodedPng* out) {
   png_read_info(png, info);
   const png_byte color_type = png_get_color_type(png, info);
   const png_byte depth = png_get_bit_depth(png, info);
+  // The decompressed image data hold at least width·height·bits / 8 bytes, plus a filter byte per
+  // row of the last interlace pass (every other row); refused before allocating the pixels when
+  // the file cannot hold it.
+  const std::uint64_t stored_bits = std::uint64_t{png_get_channels(png, info)} * depth;
+  const std::uint64_t stored_width = png_get_image_width(png, info), stored_height = png_get_image_height(png, info);
   if (color_type == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
   if (color_type == PNG_COLOR_TYPE_GRAY && depth < 8) png_set_expand_gray_1_2_4_to_8(png);
   // Alpha is ignored, also the one that png_set_palette_to_rgb makes of a palette's tRNS chunk.
@@ -227,6 +238,12 @@ bool decode_png(png_structp png, png_infop info, DecodedPng* out) {
     out->too_large = true;
     return true;
   }
+  const std::uint64_t data_bytes = stored_width * stored_height * stored_bits / 8 + stored_height / 2;
+  const auto* context = static_cast<const PngContext*>(png_get_io_ptr(png));
+  if (data_bytes > max_deflate_ratio * context->size) {
+    out->data_needed = data_bytes;
+    return true;
+  }
   if ((out->channels != 1 && out->channels != 3) || (out->bit_depth != 8 && out->bit_depth != 16))
     png_error(png, "unsupported PNG sample layout");
   const std::size_t row_bytes = png_get_rowbytes(png, info);
@@ -238,7 +255,7 @@ bool decode_png(png_structp png, png_infop info, DecodedPng* out) {
   return true;
 }
 
-GrayImage read_png(const std::string& path, const std::vector<unsigned char>& bytes) {
+GrayImage read_png(const std::string& path, std::span<const unsigned char> bytes) {
   PngContext context;
   context.data = bytes.data();
   context.size = bytes.size();
@@ -250,6 +267,10 @@ GrayImage read_png(const std::string& path, const std::vector<unsigned char>& by
     throw InputError(path, "cannot initialise libpng");
   }
   png_set_read_fn(png, &context, on_png_read);
+  // Only the pixels matter: libpng skips every ancillary chunk but tRNS unread (fuzzing found
+  // that libpng 1.6.39 allocates the length a zTXt chunk claims, up to 2 GiB, even after warning
+  // that it exceeds its limit).
+  png_set_keep_unknown_chunks(png, PNG_HANDLE_CHUNK_NEVER, nullptr, -1);
   std::vector<unsigned char> pixels;
   std::vector<png_bytep> rows;
   DecodedPng decoded;
@@ -265,6 +286,11 @@ GrayImage read_png(const std::string& path, const std::vector<unsigned char>& by
   png_destroy_read_struct(&png, &info, nullptr);
   if (!ok) throw InputError(path, std::string("corrupt PNG: ") + context.message);
   check_size(path, decoded.width, decoded.height);
+  if (decoded.data_needed > 0)
+    throw InputError(path, "truncated PNG: a " + std::to_string(decoded.width) + "x" + std::to_string(decoded.height) +
+                               " image needs at least " + std::to_string(decoded.data_needed) +
+                               " bytes of image data, more than a file of " + std::to_string(bytes.size()) +
+                               " bytes can hold");
 
   GrayImage image;
   image.width = static_cast<int>(decoded.width);
@@ -314,19 +340,19 @@ unsigned quantise(double v, unsigned maxval) {
   return static_cast<unsigned>(std::lround(std::clamp(v, 0.0, 1.0) * maxval));
 }
 
+// Atomically (a temporary file renamed into place): a failure leaves any previous file intact.
 void write_bytes(const std::string& path, const std::vector<unsigned char>& bytes) {
-  errno = 0;
-  File file(std::fopen(path.c_str(), "wb"));
-  if (!file) throw InputError(path, std::string("cannot create file: ") + std::strerror(errno));
-  const bool written = std::fwrite(bytes.data(), 1, bytes.size(), file.get()) == bytes.size();
-  const int closed = std::fclose(file.release());
-  if (!written || closed != 0) throw InputError(path, std::string("cannot write file: ") + std::strerror(errno));
+  write_file_atomically(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
 }
 
 }  // namespace
 
 GrayImage read_image(const std::string& path) {
   const std::vector<unsigned char> bytes = read_file(path);
+  return decode_image(path, bytes);
+}
+
+GrayImage decode_image(const std::string& path, std::span<const unsigned char> bytes) {
   if (bytes.empty()) throw InputError(path, "empty file (expected a PGM or PNG image)");
   if (bytes.size() >= 8 && png_sig_cmp(bytes.data(), 0, 8) == 0) return read_png(path, bytes);
   if (bytes.size() >= 2 && bytes[0] == 'P') {

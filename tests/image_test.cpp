@@ -13,10 +13,17 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "sdot/error.hpp"
+
+// Under AddressSanitizer (scripts/test-sanitized.sh) an allocation above 1 GiB fails the test: a
+// reader must refuse the size a file claims before allocating it, and no test image needs more.
+extern "C" const char* __asan_default_options() {
+  return "max_allocation_size_mb=1024";
+}
 
 namespace sdot {
 namespace {
@@ -380,6 +387,88 @@ TEST_F(ImageTest, PngWithZeroWidthIsCorrupt) {
   for (int k = 0; k < 4; ++k) bytes[static_cast<std::size_t>(29 + k)] = static_cast<char>((crc >> (24 - 8 * k)) & 0xff);
   write_file(path("zero.png"), bytes);
   expect_error(path("zero.png"), "zero");
+}
+
+// ---------------------------------------------------------------------------------------------
+// decode_image, and the inputs that fuzzing found (tests/fuzz, docs/reliability.md)
+
+/// A PNG chunk: length, type, data, CRC.
+std::string make_png_chunk(const std::string& type, const std::string& data) {
+  std::string chunk;
+  for (int k = 0; k < 4; ++k) chunk += static_cast<char>((data.size() >> (24 - 8 * k)) & 0xff);
+  chunk += type + data;
+  const std::uint32_t crc = crc32(type + data);
+  for (int k = 0; k < 4; ++k) chunk += static_cast<char>((crc >> (24 - 8 * k)) & 0xff);
+  return chunk;
+}
+
+/// decode_image on a string's bytes.
+GrayImage decode(const std::string& name, const std::string& bytes) {
+  return decode_image(name, std::span(reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size()));
+}
+
+/// Expects decode_image to throw an InputError naming `name` and containing `problem`.
+void expect_decode_error(const std::string& name, const std::string& bytes, const std::string& problem) {
+  try {
+    (void)decode(name, bytes);
+    ADD_FAILURE() << "no InputError for " << name;
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.field(), name);
+    const std::string message = e.what();
+    EXPECT_NE(message.find(problem), std::string::npos) << "expected \"" << problem << "\" in: " << message;
+  }
+}
+
+TEST_F(ImageTest, DecodeImageReadsBytesAsReadImageReadsTheFile) {
+  const GrayImage original = random_image(7, 5, 8);
+  write_png(path("a.png"), original);
+  write_pgm(path("a.pgm"), original, true);
+  for (const char* file : {"a.png", "a.pgm"}) {
+    const GrayImage from_file = read_image(path(file));
+    const GrayImage from_bytes = decode(file, read_bytes(path(file)));
+    EXPECT_EQ(from_bytes.width, from_file.width);
+    EXPECT_EQ(from_bytes.height, from_file.height);
+    EXPECT_EQ(from_bytes.values, from_file.values);
+  }
+  expect_decode_error("empty", "", "empty file");
+}
+
+// fuzz_png found it: after its IHDR (16384 x 16384, 16-bit RGB) a zTXt chunk claims 0x75000000
+// bytes; libpng warned "chunk data is too large" and still allocated 1.96 GB before finding
+// the file's end. Ancillary chunks are now skipped unread.
+TEST_F(ImageTest, FuzzPngChunkClaimingTwoGigabytesIsNotAllocated) {
+  const unsigned char input[] = {0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d,
+                                 0x49, 0x48, 0x44, 0x52, 0x00, 0x00, 0x40, 0x00, 0x00, 0x00, 0x40, 0x00,
+                                 0x10, 0x02, 0x00, 0x00, 0x00, 0x76, 0x3a, 0x5b, 0x90, 0x75, 0x00, 0x00,
+                                 0x00, 0x7a, 0x54, 0x58, 0x74, 0x49, 0x44, 0x41, 0x54, 0x8a, 0x00, 0x40};
+  expect_decode_error("fuzz.png", std::string(reinterpret_cast<const char*>(input), sizeof input), "corrupt PNG");
+}
+
+TEST_F(ImageTest, PngAncillaryChunksAreSkipped) {
+  const GrayImage original = random_image(6, 4, 9);
+  write_png(path("plain.png"), original);
+  const std::string bytes = read_bytes(path("plain.png"));
+  // Text, a compressed text whose CRC is wrong, and an unknown chunk, between IHDR and IDAT.
+  std::string bad_crc = make_png_chunk("zTXt", std::string("Comment\0\0x", 10));
+  bad_crc[bad_crc.size() - 1] = static_cast<char>(bad_crc.back() ^ 0x5a);
+  const std::string chunks = make_png_chunk("tEXt", std::string("Comment\0made by a test", 23)) + bad_crc +
+                             make_png_chunk("abCd", std::string(100, 'x'));
+  const std::size_t after_ihdr = 8 + 25;
+  expect_close(decode("chunks.png", bytes.substr(0, after_ihdr) + chunks + bytes.substr(after_ihdr)), original,
+               0.5 / 255);
+}
+
+// A 16384 x 16384 16-bit RGB image (1.6 GB of samples) whose file holds a few bytes of image
+// data: refused before the pixel buffer is allocated (deflate expands at most 1032:1).
+TEST_F(ImageTest, PngTooShortForItsSizeIsRefusedBeforeDecoding) {
+  std::string header;
+  for (const std::uint32_t v : {16384u, 16384u})
+    for (int k = 0; k < 4; ++k) header += static_cast<char>((v >> (24 - 8 * k)) & 0xff);
+  header += std::string("\x10\x02\0\0\0", 5);  // 16-bit, RGB, deflate, adaptive filters, not interlaced
+  const std::string empty_deflate("\x78\x9c\x03\x00\x00\x00\x00\x01", 8);
+  const std::string png = std::string("\x89PNG\r\n\x1a\n", 8) + make_png_chunk("IHDR", header) +
+                          make_png_chunk("IDAT", empty_deflate) + make_png_chunk("IEND", "");
+  expect_decode_error("large.png", png, "truncated PNG: a 16384x16384 image needs at least 1610620928 bytes");
 }
 
 }  // namespace

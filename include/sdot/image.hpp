@@ -4,6 +4,7 @@
 /// PNG of any colour type (read with libpng, which stays private to the library).
 
 #include <cstddef>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -34,8 +35,15 @@ struct GrayImage {
 /// is out of range.
 [[nodiscard]] GrayImage read_image(const std::string& path);
 
+/// Decodes the bytes of a PGM or PNG file, as read_image does with a file's content (the format
+/// comes from the first bytes); `name` is the InputError's field, e.g. the file's path. The size
+/// a header announces is checked (at most 2^28 pixels, and a binary PGM must hold its raster)
+/// before memory is allocated for it. Throws InputError for the same reasons as read_image.
+[[nodiscard]] GrayImage decode_image(const std::string& name, std::span<const unsigned char> bytes);
+
 /// Writes `image` as a binary PGM (P5), with maxval 65535 when `sixteen_bit`, else 255. Values are
-/// clamped to [0, 1] and rounded. Throws InputError (field `path`) when the file cannot be written,
+/// clamped to [0, 1] and rounded. The file is replaced atomically (write_file_atomically: a failure
+/// leaves a previous file intact). Throws InputError (field `path`) when the file cannot be written,
 /// and (field `image`) when the image is empty, its size does not match its values, or a value is
 /// not finite.
 void write_pgm(const std::string& path, const GrayImage& image, bool sixteen_bit = false);

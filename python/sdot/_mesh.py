@@ -10,25 +10,39 @@ from . import _sdot
 from ._solve import _float_array, _int_array
 
 
-def read_mesh(path):
-    """Reads a triangle mesh (OFF, OBJ, PLY ascii or binary, by extension).
+_MESH_FORMATS = (None, "off", "obj", "ply", "freesurfer")
 
-    Returns (vertices (n, 3) float64, faces (m, 3) int64); polygons are fan-triangulated.
-    Raises FileNotFoundError for a missing file and ValueError (naming the file and line) for a
-    malformed one."""
+
+def _check_format(format):
+    if format not in _MESH_FORMATS:
+        raise ValueError(f"format: must be one of off, obj, ply, freesurfer (or None: by the name), got {format!r}")
+    return format or ""
+
+
+def read_mesh(path, *, format=None):
+    """Reads a triangle mesh: OFF, OBJ, PLY ascii or binary, or a FreeSurfer surface.
+
+    The format is `format` ("off", "obj", "ply", "freesurfer"), or by the name when None:
+    the extension, or FreeSurfer's names (lh.pial, rh.white, lh.sphere, ...), or the FreeSurfer
+    magic bytes. Returns (vertices (n, 3) float64, faces (m, 3) int64); polygons are
+    fan-triangulated. Raises FileNotFoundError for a missing file and ValueError (naming the file
+    and line or element) for a malformed one."""
     path = os.fspath(path)
+    format = _check_format(format)
     if not os.path.exists(path):
         raise FileNotFoundError(f"{path}: no such file")
-    vertices, faces, _ = _sdot.read_mesh(path)
+    vertices, faces, _ = _sdot.read_mesh(path, format)
     return vertices, faces
 
 
-def write_mesh(path, vertices, faces, *, ply_ascii=False):
-    """Writes a triangle mesh as OFF, OBJ or PLY (by extension; PLY binary unless `ply_ascii`),
-    with round-trip exact coordinates."""
+def write_mesh(path, vertices, faces, *, ply_ascii=False, format=None):
+    """Writes a triangle mesh as OFF, OBJ, PLY or a FreeSurfer surface (`format`, or by the name
+    as for read_mesh), with round-trip exact coordinates (FreeSurfer stores float32). PLY is
+    binary unless `ply_ascii`. The file is replaced atomically."""
+    format = _check_format(format)
     vertices = _float_array(vertices, "vertices", ndim=2, columns=(3,))
     faces = _int_array(faces, "faces")
-    _sdot.write_mesh(os.fspath(path), vertices, faces, bool(ply_ascii))
+    _sdot.write_mesh(os.fspath(path), vertices, faces, bool(ply_ascii), format)
 
 
 def sphere_parameterization(

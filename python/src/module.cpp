@@ -175,9 +175,9 @@ py::tuple sphere_parameterization(const py::array_t<double>& vertices, const py:
   return py::make_tuple(vertices_array(sphere), result.report.dump(), initial_d, final_d);
 }
 
-py::tuple read_mesh(const std::string& path) {
+py::tuple read_mesh(const std::string& path, const std::string& format) {
   sphparam::ReadInfo info;
-  const sphparam::Mesh mesh = sphparam::read_mesh(path, &info);
+  const sphparam::Mesh mesh = sphparam::read_mesh(path, &info, format);
   py::dict details;
   details["format"] = info.format;
   details["polygons"] = info.polygons;
@@ -187,8 +187,8 @@ py::tuple read_mesh(const std::string& path) {
 }
 
 void write_mesh(const std::string& path, const py::array_t<double>& vertices, const py::array_t<std::int64_t>& faces,
-                bool ply_ascii) {
-  sphparam::write_mesh(path, read_mesh_arrays(vertices, faces), ply_ascii);
+                bool ply_ascii, const std::string& format) {
+  sphparam::write_mesh(path, read_mesh_arrays(vertices, faces), ply_ascii, format);
 }
 
 }  // namespace

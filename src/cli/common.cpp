@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <set>
 
 namespace sdot::cli {
@@ -14,6 +16,16 @@ double read_number(const json& value, const std::string& field) {
   const double x = value.get<double>();
   if (!std::isfinite(x)) throw InputError(field, "must be finite");
   return x;
+}
+
+int read_int(const json& value, const std::string& field, const std::string& what) {
+  // get<int>() would wrap a larger integer (4294967301 became 5) and cast a double out of range.
+  constexpr auto low = std::numeric_limits<int>::min(), high = std::numeric_limits<int>::max();
+  const bool fits = value.is_number_unsigned()  ? value.get<std::uint64_t>() <= std::uint64_t{high}
+                    : value.is_number_integer() ? value.get<std::int64_t>() >= low && value.get<std::int64_t>() <= high
+                                                : false;
+  if (!fits) throw InputError(field, "must be " + what + ", got " + value.dump());
+  return value.get<int>();
 }
 
 std::vector<Eigen::VectorXd> read_points(const json& value, const std::string& field, int dimension) {
@@ -76,10 +88,8 @@ Options bench_options(const BenchRequest& request) {
 Options read_options(const json& problem, bool quiet) {
   Options options;
   if (problem.contains("tolerance")) options.tolerance = read_number(problem["tolerance"], "tolerance");
-  if (problem.contains("max_iterations")) {
-    if (!problem["max_iterations"].is_number_integer()) throw InputError("max_iterations", "must be an integer");
-    options.max_iterations = problem["max_iterations"].get<int>();
-  }
+  if (problem.contains("max_iterations"))
+    options.max_iterations = read_int(problem["max_iterations"], "max_iterations", "an integer");
   if (problem.contains("linear_solver")) options.linear_solver = read_linear_solver(problem["linear_solver"]);
   try {
     options.validate();
@@ -118,9 +128,15 @@ json read_json_file(const std::string& path, const std::string& what) {
   if (!in) throw InputError(path, "cannot open " + what);
   std::stringstream buffer;
   buffer << in.rdbuf();
+  const std::string text = buffer.str();
+  if (text.find_first_not_of(" \t\r\n") == std::string::npos)
+    throw InputError(path, "empty file (" + what + " must hold a JSON object)");
   try {
-    return json::parse(buffer.str());
-  } catch (const json::parse_error& e) {
+    // Comments (// and /* */) are accepted: problem files are written and annotated by hand.
+    return json::parse(text, nullptr, true, /*ignore_comments=*/true);
+  } catch (const json::out_of_range& e) {  // 1e999: a number no double holds
+    throw InputError(path, std::string("malformed JSON: a number out of the range of doubles (") + e.what() + ")");
+  } catch (const json::exception& e) {
     throw InputError(path, std::string("malformed JSON: ") + e.what());
   }
 }

@@ -3,6 +3,8 @@
 
 #include <fmt/format.h>
 #include <Eigen/Core>
+#include <array>
+#include <cstdint>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -24,6 +26,8 @@ using nlohmann::json;
 
 /// A number field; InputError naming the field when it is not a finite number.
 double read_number(const json& value, const std::string& field);
+/// An integer field that fits an int; InputError naming the field ("must be " + `what`) otherwise.
+int read_int(const json& value, const std::string& field, const std::string& what);
 /// An array of points with `dimension` coordinates each.
 std::vector<Eigen::VectorXd> read_points(const json& value, const std::string& field, int dimension);
 /// An array of numbers.
@@ -95,10 +99,20 @@ std::optional<PiecewiseDensity<G>> read_density(const G& geometry, const json& p
   std::vector<std::array<int, 3>> triangles;
   for (std::size_t t = 0; t < triangle_array.size(); ++t) {
     const json& tri = triangle_array[t];
+    const std::string field = indexed(prefix + ".triangles", t);
     if (!(tri.is_array() && tri.size() == 3 && tri[0].is_number_integer() && tri[1].is_number_integer() &&
           tri[2].is_number_integer()))
-      throw InputError(indexed(prefix + ".triangles", t), "must be an array of 3 vertex indices");
-    triangles.push_back({tri[0].get<int>(), tri[1].get<int>(), tri[2].get<int>()});
+      throw InputError(field, "must be an array of 3 vertex indices");
+    std::array<int, 3> triangle{};
+    for (int k = 0; k < 3; ++k) {  // checked before get<int>(), which would wrap 4294967296 to 0
+      const json& v = tri[k];
+      if (v.is_number_unsigned() ? v.get<std::uint64_t>() >= vertices.size()
+                                 : v.get<std::int64_t>() < 0 || v.get<std::int64_t>() >= std::ssize(vertices))
+        throw InputError(
+            field, "vertex index " + v.dump() + " is out of range (" + std::to_string(vertices.size()) + " vertices)");
+      triangle[static_cast<std::size_t>(k)] = v.get<int>();
+    }
+    triangles.push_back(triangle);
   }
   const bool per_vertex = mesh->contains("values"), per_triangle = mesh->contains("triangle_values");
   if (per_vertex == per_triangle)
@@ -110,7 +124,7 @@ std::optional<PiecewiseDensity<G>> read_density(const G& geometry, const json& p
     return mesh_density_per_triangle(geometry, std::span<const typename G::Point>(vertices),
                                      std::span<const std::array<int, 3>>(triangles), value_span, prefix);
   const int order = density.contains("quadrature_order")
-                        ? static_cast<int>(read_number(density["quadrature_order"], "density.quadrature_order"))
+                        ? read_int(density["quadrature_order"], "density.quadrature_order", "an integer in 1..64")
                         : 3;
   if (order < 1 || order > 64) throw InputError("density.quadrature_order", "must be an integer in 1..64");
   return mesh_density(geometry, std::span<const typename G::Point>(vertices),

@@ -2,12 +2,12 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <sstream>
 
 #include "common.hpp"
 #include "registry.hpp"
+#include "sdot/output_file.hpp"
 
 namespace {
 
@@ -26,11 +26,12 @@ struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Atomically (sdot::write_file_atomically): a failed or killed run leaves the previous file intact.
 void write_file(const std::filesystem::path& path, const std::string& content) {
-  if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path());
-  std::ofstream out(path, std::ios::binary);
-  out << content;
-  if (!out) throw sdot::Error("cannot write " + path.string());
+  std::error_code error;
+  if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), error);
+  if (error) throw sdot::InputError(path.string(), "cannot write: " + error.message());
+  sdot::write_file_atomically(path.string(), content);
 }
 
 const sdot::cli::GeometryCommands& find_geometry(const sdot::cli::Registry& registry, const json& name_value) {

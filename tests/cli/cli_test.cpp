@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <filesystem>
@@ -9,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "support/scratch_directory.hpp"
 
@@ -112,6 +114,7 @@ class CliBadInput : public ::testing::TestWithParam<BadInput> {};
 TEST_P(CliBadInput, ExitsWithCode2AndAOneLineReason) {
   const auto& c = GetParam();
   write("tiny.pgm", "P2\n3 2\n255\n0 1 2 3 4 5\n");  // for cases that need a readable image
+  write("black.pgm", "P2\n2 2\n255\n0 0 0 0\n");
   const auto path = write(std::string(c.name) + ".json", c.problem);
   const auto r = run("solve " + path.string() + " --quiet");
   EXPECT_EQ(r.exit_code, 2) << r.err;
@@ -124,6 +127,23 @@ INSTANTIATE_TEST_SUITE_P(
     Cases, CliBadInput,
     ::testing::Values(
         BadInput{"malformed", R"({"geometry": "plane", "sites": [[0,0],)", "malformed JSON"},
+        BadInput{"empty_file", "", "empty_file.json: empty file"},
+        BadInput{"blank_file", " \r\n\t\n", "blank_file.json: empty file"},
+        BadInput{"truncated", R"({"geometry": "sphere", "sites": [[0,0,1],[0,1)", "truncated.json: malformed JSON"},
+        BadInput{"infinite_coordinate", R"({"geometry": "plane", "sites": [[1e999, 0.5], [0.2, 0.2]]})",
+                 "infinite_coordinate.json: malformed JSON: a number out of the range of doubles"},
+        BadInput{"nan_mass", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]], "masses": ["NaN", 1]})",
+                 "masses[0]: must be a number"},
+        BadInput{"zero_tolerance", R"({"geometry": "plane", "sites": [[0.1,0.1]], "tolerance": 0})",
+                 "tolerance: must be a positive number"},
+        BadInput{"zero_mass_image", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]],
+                     "density": {"type": "image", "file": "black.pgm"}})",
+                 "density: has no mass on the source domain"},
+        BadInput{"sphere_great_circle", R"({"geometry": "sphere", "sites": [[1,0,0],[0,1,0],[-1,0,0],[0,-1,0]]})",
+                 "sites: all sites lie in a closed hemisphere"},
+        BadInput{"sphere_coincident_after_normalisation",
+                 R"({"geometry": "sphere", "sites": [[1,0,0],[2,0,0],[0,0,1],[0,0,-1],[-1,0,0]]})",
+                 "sites[1]: duplicate of sites[0] (after normalisation)"},
         BadInput{"unknown_geometry", R"({"geometry": "torus", "sites": [[0,0]]})",
                  "geometry: unknown geometry 'torus'"},
         BadInput{"missing_geometry", R"({"sites": [[0,0]]})", "geometry: missing"},
@@ -213,6 +233,31 @@ INSTANTIATE_TEST_SUITE_P(
                  "sites[1]"}),
     [](const ::testing::TestParamInfo<BadInput>& param_info) { return std::string(param_info.param.name); });
 
+// Benign forms of a problem file are read as the plain one: a UTF-8 byte order mark, CRLF line
+// ends, comments, and a domain given clockwise.
+TEST(Cli, ByteOrderMarkCrlfCommentsAndClockwiseDomainsAreAccepted) {
+  const std::string plain = R"({"geometry": "plane", "sites": [[0.2,0.2],[0.8,0.3],[0.5,0.8]],
+    "domain": [[0,0],[1,0],[1,1],[0,1]], "tolerance": 1e-12})";
+  std::string crlf;
+  for (char c : plain) crlf += c == '\n' ? std::string("\r\n") : std::string(1, c);
+  const std::vector<std::pair<std::string, std::string>> variants{
+      {"plain", plain},
+      {"bom", "\xEF\xBB\xBF" + plain},
+      {"crlf", crlf},
+      {"comments", "// a problem\n{ /* the sites */ " + plain.substr(1) + " // end\n"},
+      {"clockwise", R"({"geometry": "plane", "sites": [[0.2,0.2],[0.8,0.3],[0.5,0.8]],
+        "domain": [[0,0],[0,1],[1,1],[1,0]], "tolerance": 1e-12})"}};
+  std::vector<double> reference;
+  for (const auto& [name, text] : variants) {
+    const auto r = run("solve " + write(name + "_accepted.json", text).string() + " --quiet");
+    ASSERT_EQ(r.exit_code, 0) << name << ": " << r.err;
+    const auto weights = json::parse(r.out)["weights"].get<std::vector<double>>();
+    if (reference.empty()) reference = weights;
+    ASSERT_EQ(weights.size(), reference.size()) << name;
+    for (std::size_t i = 0; i < weights.size(); ++i) EXPECT_NEAR(weights[i], reference[i], 1e-12) << name;
+  }
+}
+
 TEST(Cli, PlaneDomainWithHolesAndImageDensity) {
   // A square with two holes; an image density given relative to the problem file.
   std::string pgm = "P2\n8 8\n255\n";
@@ -275,6 +320,54 @@ TEST(Cli, MeshDensitiesOnTheSphereAndInH2) {
   EXPECT_EQ(result["status"], "converged");
 }
 
+// Outputs are replaced atomically (sdot::write_file_atomically): a run that fails leaves the
+// previous result and picture byte-identical, and no other file in their folder.
+TEST(Cli, AFailedSolveLeavesThePreviousOutputsByteIdentical) {
+  const fs::path dir = scratch() / "previous_outputs";
+  fs::create_directories(dir);
+  const fs::path result = dir / "result.json", svg = dir / "diagram.svg";
+  const auto good = write("previous_good.json", R"({"geometry": "plane", "sites": [[0.2,0.2],[0.8,0.3],[0.5,0.8]]})");
+  ASSERT_EQ(run("solve " + good.string() + " --quiet -o " + result.string() + " --svg " + svg.string()).exit_code, 0);
+  const std::string old_result = slurp(result), old_svg = slurp(svg);
+  ASSERT_FALSE(old_result.empty());
+  ASSERT_FALSE(old_svg.empty());
+  auto folder = [&] {
+    std::vector<std::string> names;
+    for (const auto& entry : fs::directory_iterator(dir)) names.push_back(entry.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+  };
+
+  // Bad input: the run stops before any output.
+  const auto bad = write("previous_bad.json", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5],[0.1,0.1]]})");
+  auto r = run("solve " + bad.string() + " --quiet --output " + result.string() + " --svg " + svg.string());
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("sites[2]: duplicate of sites[0]"), std::string::npos) << r.err;
+  EXPECT_EQ(slurp(result), old_result);
+  EXPECT_EQ(slurp(svg), old_svg);
+  EXPECT_EQ(folder(), (std::vector<std::string>{"diagram.svg", "result.json"}));
+
+  // A picture that cannot be written (its folder would be inside the result file): the result is
+  // replaced whole, the previous picture stays, and the error names the picture's path.
+  const auto other = write("previous_other.json", R"({"geometry": "plane", "sites": [[0.3,0.3],[0.7,0.6]]})");
+  const fs::path bad_svg = result / "diagram.svg";
+  r = run("solve " + other.string() + " --quiet -o " + result.string() + " --svg " + bad_svg.string());
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find(bad_svg.string() + ": cannot write: "), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_EQ(json::parse(slurp(result))["weights"].size(), 2u) << "the new result";
+  EXPECT_EQ(slurp(svg), old_svg);
+  EXPECT_EQ(folder(), (std::vector<std::string>{"diagram.svg", "result.json"}));
+
+  // A result path that is a folder: nothing is written there or beside it.
+  fs::create_directories(dir / "a_folder");
+  r = run("solve " + good.string() + " --quiet -o " + (dir / "a_folder").string());
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find((dir / "a_folder").string() + ": cannot write: Is a directory"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::is_empty(dir / "a_folder"));
+  EXPECT_EQ(folder(), (std::vector<std::string>{"a_folder", "diagram.svg", "result.json"}));
+}
+
 TEST(Cli, UsageErrors) {
   EXPECT_EQ(run("").exit_code, 2);
   EXPECT_EQ(run("frobnicate").exit_code, 2);
@@ -331,5 +424,31 @@ TEST(Cli, BenchWithAMeshDensity) {
   }
   EXPECT_EQ(run("bench --geometry plane --n 10 --density-triangles 0").exit_code, 2);
 }
+
+// Integers outside int's range, found while writing the fuzz harnesses (tests/fuzz): get<int>()
+// wrapped them (max_iterations 4294967301 ran 5 iterations, triangle index 4294967298 became
+// vertex 2) and quadrature_order 1e10 was cast to int (undefined behaviour).
+INSTANTIATE_TEST_SUITE_P(
+    OutOfRangeIntegers, CliBadInput,
+    ::testing::Values(BadInput{"huge_max_iterations",
+                               R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]], "max_iterations": 4294967301})",
+                               "max_iterations: must be an integer, got 4294967301"},
+                      BadInput{
+                          "huge_negative_max_iterations",
+                          R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]], "max_iterations": -4294967291})",
+                          "max_iterations: must be an integer, got -4294967291"},
+                      BadInput{"huge_triangle_index", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]],
+                     "density": {"type": "mesh", "vertices": [[0,0],[1,0],[1,1],[0,1]],
+                                 "triangles": [[0,1,2],[0,3,4294967298]], "values": [1,1,1,1]}})",
+                               "density.triangles[1]: vertex index 4294967298 is out of range (4 vertices)"},
+                      BadInput{"huge_quadrature_order", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]],
+                     "density": {"type": "mesh", "vertices": [[0,0],[1,0],[1,1]], "triangles": [[0,1,2]],
+                                 "values": [1,1,1], "quadrature_order": 1e10}})",
+                               "density.quadrature_order: must be an integer in 1..64"},
+                      BadInput{"fractional_quadrature_order", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,0.5]],
+                     "density": {"type": "mesh", "vertices": [[0,0],[1,0],[1,1]], "triangles": [[0,1,2]],
+                                 "values": [1,1,1], "quadrature_order": 3.5}})",
+                               "density.quadrature_order: must be an integer in 1..64"}),
+    [](const ::testing::TestParamInfo<BadInput>& param_info) { return std::string(param_info.param.name); });
 
 }  // namespace

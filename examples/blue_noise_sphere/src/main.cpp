@@ -5,12 +5,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <iostream>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <sdot/error.hpp>
+#include <sdot/output_file.hpp>
 #include <string>
 
 #include "blue_noise.hpp"
@@ -260,9 +260,7 @@ int main(int argc, char** argv) {
     if (arguments.output_path.empty()) {
       std::cout << output.dump(1) << "\n";
     } else {
-      std::ofstream out(arguments.output_path);
-      out << output.dump(1) << "\n";
-      if (!out) throw sdot::InputError(arguments.output_path, "cannot write the JSON output");
+      sdot::write_file_atomically(arguments.output_path, output.dump(1) + "\n");
       progress("wrote " + arguments.output_path);
     }
     return 0;

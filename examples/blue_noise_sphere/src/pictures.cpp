@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <numbers>
 #include <sdot/error.hpp>
+#include <sdot/output_file.hpp>
 #include <sstream>
 
 namespace blue_noise {
@@ -154,9 +154,7 @@ void write_svg_picture(const std::string& path, const sdot::GrayImage& image, co
   }
   svg << "</g>\n</svg>\n";
 
-  std::ofstream out(path);
-  out << svg.str();
-  if (!out) throw sdot::InputError(path, "cannot write the SVG picture");
+  sdot::write_file_atomically(path, svg.str());  // throws InputError(path, "cannot write: ...")
 }
 
 }  // namespace blue_noise

@@ -1,4 +1,5 @@
 // sdot-sphere-param: area-preserving spherical parameterization of a closed genus-0 mesh.
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -6,6 +7,8 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <sdot/error.hpp>
+#include <sdot/output_file.hpp>
 #include <string>
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -24,11 +27,13 @@ namespace {
 const char* usage =
     "usage: sdot-sphere-param INPUT -o OUTPUT [--report REPORT.json] [--svg HISTOGRAM.svg]\n"
     "                         [--target-weights FILE] [--refine N] [--max-refine N] [--reweightings N]\n"
-    "                         [--no-optimize] [--ot-tolerance T] [--sweeps N] [--ply-ascii] [--quiet]\n"
+    "                         [--no-optimize] [--ot-tolerance T] [--sweeps N] [--ply-ascii]\n"
+    "                         [--format FMT] [--input-format FMT] [--radius R] [--quiet]\n"
     "\n"
     "Maps a closed genus-0 triangle mesh onto the unit sphere without area distortion and without\n"
     "flipped faces (semi-discrete optimal transport with sdot's sphere geometry).\n"
-    "INPUT and OUTPUT are OFF, OBJ or PLY (by extension; PLY ascii or binary little-endian).\n"
+    "INPUT and OUTPUT are OFF, OBJ, PLY (ascii or binary little-endian) or FreeSurfer surfaces\n"
+    "(lh.pial, rh.white, lh.sphere, ...), by their names, or FreeSurfer's magic bytes for INPUT.\n"
     "The output has the same vertices and triangles in the same order, every vertex on the sphere.\n"
     "  --report FILE          JSON report: input statistics, stage times, Newton iterations,\n"
     "                         mass error, distortion metrics (as shared/tools/eval_sphere_map.py)\n"
@@ -47,6 +52,9 @@ const char* usage =
     "  --ot-tolerance T       max relative mass error of the OT solve (default 0.05)\n"
     "  --sweeps N             sweeps of the area optimization at most (default 200)\n"
     "  --ply-ascii            write PLY as ascii (default binary little-endian)\n"
+    "  --format FMT           OUTPUT's format whatever its name: off, obj, ply or freesurfer\n"
+    "  --input-format FMT     INPUT's format whatever its name\n"
+    "  --radius R             radius of the output sphere (default 1; FreeSurfer's ?h.sphere: 100)\n"
     "  --quiet                no progress output\n";
 
 double since(std::chrono::steady_clock::time_point t) {
@@ -78,6 +86,38 @@ std::vector<double> read_factors(const std::string& path, std::size_t count) {
   return v;
 }
 
+/// Exits with code 2 and a one-line message naming the option.
+[[noreturn]] void bad_option(const std::string& option, const std::string& problem) {
+  std::cerr << "error: " << option << ": " << problem << "\n";
+  std::exit(2);
+}
+
+/// A finite number option, > 0 (or ≥ 0 when `zero_allowed`).
+double number_option(const std::string& option, const std::string& text, bool zero_allowed) {
+  char* end = nullptr;
+  const double x = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0' || !std::isfinite(x) || x < 0 || (x == 0 && !zero_allowed))
+    bad_option(option, std::string("expected a ") + (zero_allowed ? "non-negative" : "positive") + " number, got '" +
+                           text + "'");
+  return x;
+}
+
+/// An integer option ≥ `least`.
+int integer_option(const std::string& option, const std::string& text, int least) {
+  char* end = nullptr;
+  errno = 0;
+  const long x = std::strtol(text.c_str(), &end, 10);
+  if (text.empty() || *end != '\0' || errno != 0 || x < least || x > 1000000)
+    bad_option(option, "expected an integer from " + std::to_string(least) + " to 1000000, got '" + text + "'");
+  return static_cast<int>(x);
+}
+
+std::string format_option(const std::string& option, const std::string& text) {
+  if (text != "off" && text != "obj" && text != "ply" && text != "freesurfer")
+    bad_option(option, "expected off, obj, ply or freesurfer, got '" + text + "'");
+  return text;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -90,7 +130,8 @@ int main(int argc, char** argv) {
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
   mallopt(M_TOP_PAD, 16 << 20);
 #endif
-  std::string input, output, report_path, svg_path, weights_path;
+  std::string input, output, report_path, svg_path, weights_path, input_format, output_format;
+  double radius = 1;
   PipelineOptions options;
   bool quiet = false, ply_ascii = false;
   for (int i = 1; i < argc; ++i) {
@@ -114,21 +155,27 @@ int main(int argc, char** argv) {
     else if (a == "--target-weights")
       weights_path = value("a file");
     else if (a == "--refine")
-      options.refine = std::atoi(value("a number").c_str());
+      options.refine = integer_option(a, value("a number"), -1);
     else if (a == "--max-refine")
-      options.max_refine = std::atoi(value("a number").c_str());
+      options.max_refine = integer_option(a, value("a number"), 0);
     else if (a == "--reweightings")
-      options.max_reweightings = std::atoi(value("a number").c_str());
+      options.max_reweightings = integer_option(a, value("a number"), 0);
     else if (a == "--no-optimize")
       options.optimize = false;
     else if (a == "--separation-delta")
-      options.separation_delta = std::atof(value("a number").c_str());
+      options.separation_delta = number_option(a, value("a number"), false);
     else if (a == "--separation-threshold")
-      options.min_spacing = std::atof(value("a number").c_str());
+      options.min_spacing = number_option(a, value("a number"), true);
     else if (a == "--ot-tolerance")
-      options.ot_tolerance = std::atof(value("a number").c_str());
+      options.ot_tolerance = number_option(a, value("a number"), false);
     else if (a == "--sweeps")
-      options.optimizer.max_sweeps = std::atoi(value("a number").c_str());
+      options.optimizer.max_sweeps = integer_option(a, value("a number"), 0);
+    else if (a == "--format")
+      output_format = format_option(a, value("a format"));
+    else if (a == "--input-format")
+      input_format = format_option(a, value("a format"));
+    else if (a == "--radius")
+      radius = number_option(a, value("a number"), false);
     else if (a == "--ply-ascii")
       ply_ascii = true;
     else if (a == "--quiet")
@@ -147,6 +194,9 @@ int main(int argc, char** argv) {
     std::cerr << usage;
     return 2;
   }
+  if (output_format.empty() && mesh_format(output).empty())
+    bad_option(output, "unknown mesh format '." + extension(output) +
+                           "' (use .off, .obj, .ply, a FreeSurfer surface name, or --format)");
   const auto start = std::chrono::steady_clock::now();
   auto progress = [&](const std::string& s) {
     if (quiet) return;
@@ -159,14 +209,16 @@ int main(int argc, char** argv) {
   report["output"] = output;
   auto write_report = [&] {
     if (report_path.empty()) return;
-    std::ofstream out(report_path);
-    out << report.dump(2) << "\n";
-    if (!out) std::cerr << "error: cannot write the report " << report_path << "\n";
+    try {
+      sdot::write_file_atomically(report_path, report.dump(2) + "\n");
+    } catch (const sdot::Error& e) {
+      std::cerr << "error: " << e.what() << "\n";  // the run's outcome and exit code stand
+    }
   };
   try {
     auto t = std::chrono::steady_clock::now();
     ReadInfo info;
-    const Mesh raw = read_mesh(input, &info);
+    const Mesh raw = read_mesh(input, &info, input_format);
     const double read_s = since(t);
     const std::vector<double> factors =
         weights_path.empty() ? std::vector<double>{} : read_factors(weights_path, raw.vertices.size());
@@ -174,17 +226,25 @@ int main(int argc, char** argv) {
     // The initial map's metrics appear only in the report and the histogram.
     const bool want_initial = !report_path.empty() || !svg_path.empty();
     RunResult run = run_parameterization(raw, info, options, factors, want_initial, input);
-    for (const auto& d : run.report["input_statistics"]["defects"])
-      std::cerr << (d["fatal"].get<bool>() ? "error: " : "warning: ") << input << ": "
-                << d["message"].get<std::string>() << "\n";
+    // Bad input is one line: the fatal defects, each naming its first instance.
+    std::string fatal;
+    for (const auto& d : run.report["input_statistics"]["defects"]) {
+      if (!d["fatal"].get<bool>()) {
+        if (!quiet) std::cerr << "warning: " << input << ": " << d["message"].get<std::string>() << "\n";
+      } else {
+        fatal += (fatal.empty() ? "" : "; ") + d["message"].get<std::string>();
+      }
+    }
     report.update(run.report);
     if (run.status == "invalid_input") {
-      std::cerr << "error: " << input << " is not a valid closed genus-0 manifold triangle mesh; nothing written\n";
+      std::cerr << "error: " << input << ": not a closed genus-0 manifold triangle mesh: " << fatal
+                << "; nothing written\n";
       write_report();
-      return 1;
+      return 2;
     }
+    for (auto& v : run.output.vertices) v *= radius;
     t = std::chrono::steady_clock::now();
-    write_mesh(output, run.output, ply_ascii);
+    write_mesh(output, run.output, ply_ascii, output_format);
     const double write_s = since(t);
     const double total_s = since(start);
     progress("wrote " + output);
@@ -196,9 +256,11 @@ int main(int argc, char** argv) {
     write_report();
     const Metrics& m1 = run.final_map;
     if (!svg_path.empty()) {
-      std::ofstream svg(svg_path);
-      svg << histogram_svg(run.initial.d, m1.d, "Area distortion: " + input);
-      if (!svg) std::cerr << "error: cannot write " << svg_path << "\n";
+      try {
+        sdot::write_file_atomically(svg_path, histogram_svg(run.initial.d, m1.d, "Area distortion: " + input));
+      } catch (const sdot::Error& e) {
+        std::cerr << "error: " << e.what() << "\n";
+      }
     }
     char line[256];
     std::snprintf(line, sizeof line,

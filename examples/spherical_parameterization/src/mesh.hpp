@@ -9,6 +9,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace sphparam {
@@ -35,13 +36,28 @@ struct ReadInfo {
   std::string format;                 ///< "off", "obj", "ply ascii", "ply binary_little_endian"
 };
 
-/// Reads OFF, OBJ or PLY by extension (case-insensitive). Polygons are fan-triangulated as
-/// (v0, vk, vk+1), like the evaluator. Throws FileError.
-Mesh read_mesh(const std::string& path, ReadInfo* info = nullptr);
+/// The format of a mesh file by its name: "off", "obj" or "ply" by extension (case-insensitive),
+/// "freesurfer" for FreeSurfer's surface names (lh.pial, rh.white, lh.sphere, *.inflated, ...),
+/// "" when the name does not say.
+std::string mesh_format(const std::string& path);
 
-/// Writes OFF, OBJ or PLY by extension; PLY is binary little-endian unless `ply_ascii`.
-/// Coordinates are written with 17 significant digits (round trip exact). Throws FileError.
-void write_mesh(const std::string& path, const Mesh& mesh, bool ply_ascii = false);
+/// Reads a mesh in `format` ("off", "obj", "ply", "freesurfer"), or by its name (mesh_format)
+/// when `format` is empty, or by its magic bytes (FreeSurfer) when the name does not say.
+/// Polygons are fan-triangulated as (v0, vk, vk+1), like the evaluator. Throws FileError.
+Mesh read_mesh(const std::string& path, ReadInfo* info = nullptr, const std::string& format = "");
+
+/// Parses the bytes of a mesh file in `format` ("off", "obj", "ply" or "freesurfer"); `name` starts every
+/// error message. Accepts a UTF-8 byte order mark, CRLF line ends and comments. Rejects, with a
+/// FileError naming the line, element or index: counts that the bytes cannot hold (before any
+/// allocation of their size), truncation, data after the announced counts, indices out of range
+/// and coordinates that are not finite.
+Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::string& name, ReadInfo* info = nullptr);
+
+/// Writes `format` ("off", "obj", "ply", "freesurfer"), or the format its name says (mesh_format)
+/// when `format` is empty; PLY is binary little-endian unless `ply_ascii`. Text coordinates are
+/// the shortest that read back exactly; FreeSurfer stores float32. The file is replaced
+/// atomically (a failure leaves a previous file intact). Throws FileError.
+void write_mesh(const std::string& path, const Mesh& mesh, bool ply_ascii = false, const std::string& format = "");
 
 /// Lower-case file extension without the dot ("" if none).
 std::string extension(const std::string& path);

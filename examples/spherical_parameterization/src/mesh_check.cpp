@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <tuple>
 
 #include "mesh.hpp"
 
@@ -24,6 +25,11 @@ struct UnionFind {
 
 std::uint64_t edge_key(int a, int b) {
   return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
+}
+
+/// "edge 3-7" from an edge_key.
+std::string edge_name(std::uint64_t key) {
+  return "edge " + std::to_string(key >> 32) + "-" + std::to_string(key & 0xFFFFFFFFu);
 }
 
 std::string plural(std::size_t n, const std::string& one, const std::string& many) {
@@ -90,33 +96,76 @@ Validation validate(const Mesh& mesh, const ReadInfo& info) {
     add("no faces", 0, true, "the mesh has no triangles");
     return r;
   }
-  std::size_t nan = 0;
-  for (const auto& v : mesh.vertices)
-    if (!v.allFinite()) ++nan;
+  std::size_t nan = 0, first_nan = 0;
+  for (std::size_t v = 0; v < nv; ++v)
+    if (!mesh.vertices[v].allFinite() && nan++ == 0) first_nan = v;
   if (nan > 0)
-    add("NaN coordinates", nan, true, plural(nan, "vertex has", "vertices have") + " NaN or infinite coordinates");
+    add("NaN coordinates", nan, true,
+        plural(nan, "vertex has", "vertices have") + " NaN or infinite coordinates (first: vertex " +
+            std::to_string(first_nan) + ")");
 
-  std::size_t out_of_range = 0, repeated = 0;
+  std::size_t out_of_range = 0, repeated = 0, first_out_of_range = 0, first_repeated = 0;
   std::vector<char> used(nv, 0);
-  for (const auto& f : mesh.faces) {
+  for (std::size_t index = 0; index < nf; ++index) {
+    const Face& f = mesh.faces[index];
     bool bad = false;
     for (int i : f)
       if (i < 0 || static_cast<std::size_t>(i) >= nv) bad = true;
     if (bad) {
-      ++out_of_range;
+      if (out_of_range++ == 0) first_out_of_range = index;
       continue;
     }
-    if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2]) ++repeated;
+    if ((f[0] == f[1] || f[1] == f[2] || f[0] == f[2]) && repeated++ == 0) first_repeated = index;
     for (int i : f) used[static_cast<std::size_t>(i)] = 1;
   }
   if (out_of_range > 0) {
     add("vertex index out of range", out_of_range, true,
-        plural(out_of_range, "face refers", "faces refer") + " to a vertex index out of range");
+        plural(out_of_range, "face refers", "faces refer") + " to a vertex index out of range (first: face " +
+            std::to_string(first_out_of_range) + ")");
     return r;
   }
   if (repeated > 0)
     add("degenerate faces", repeated, true,
-        plural(repeated, "face uses", "faces use") + " the same vertex twice (degenerate connectivity)");
+        plural(repeated, "face uses", "faces use") + " the same vertex twice (degenerate connectivity; first: face " +
+            std::to_string(first_repeated) + ")");
+  {  // the same triangle twice, in any order or orientation
+    std::vector<std::pair<Face, std::size_t>> sorted(nf);
+    for (std::size_t index = 0; index < nf; ++index) {
+      Face f = mesh.faces[index];
+      std::sort(f.begin(), f.end());
+      sorted[index] = {f, index};
+    }
+    std::sort(sorted.begin(), sorted.end());
+    std::size_t duplicates = 0;
+    std::pair<std::size_t, std::size_t> first_pair;
+    for (std::size_t k = 1; k < nf; ++k)
+      if (sorted[k].first == sorted[k - 1].first && duplicates++ == 0)
+        first_pair = std::minmax(sorted[k].second, sorted[k - 1].second);
+    if (duplicates > 0)
+      add("duplicate faces", duplicates, true,
+          plural(duplicates, "face repeats", "faces repeat") + " another face's vertices (first: face " +
+              std::to_string(first_pair.second) + " = face " + std::to_string(first_pair.first) + ")");
+  }
+  {  // distinct vertices at one position: harmless unless they split the surface (then it has boundary edges)
+    std::vector<std::size_t> order(nv);
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    auto less = [&](std::size_t a, std::size_t b) {
+      const Vec3 &p = mesh.vertices[a], &q = mesh.vertices[b];
+      return std::tie(p.x(), p.y(), p.z(), a) < std::tie(q.x(), q.y(), q.z(), b);
+    };
+    if (nan == 0) {
+      std::sort(order.begin(), order.end(), less);
+      std::size_t duplicates = 0;
+      std::pair<std::size_t, std::size_t> first_pair;
+      for (std::size_t k = 1; k < nv; ++k)
+        if (mesh.vertices[order[k]] == mesh.vertices[order[k - 1]] && duplicates++ == 0)
+          first_pair = {order[k - 1], order[k]};
+      if (duplicates > 0)
+        add("duplicate vertices", duplicates, false,
+            plural(duplicates, "vertex has", "vertices have") + " the position of another vertex (first: vertex " +
+                std::to_string(first_pair.second) + " at vertex " + std::to_string(first_pair.first) + ")");
+    }
+  }
   r.unreferenced = static_cast<std::size_t>(std::count(used.begin(), used.end(), 0));
   r.vertices = nv - r.unreferenced;
   if (r.unreferenced > 0)
@@ -136,26 +185,32 @@ Validation validate(const Mesh& mesh, const ReadInfo& info) {
     }
   std::sort(half_edges.begin(), half_edges.end());
   std::size_t boundary = 0, nonmanifold_edges = 0, misoriented = 0;
+  std::uint64_t first_boundary = 0, first_nonmanifold = 0, first_misoriented = 0;
   r.edges = 0;
   for (std::size_t begin = 0, end = 0; begin < half_edges.size(); begin = end) {
     while (end < half_edges.size() && half_edges[end].first == half_edges[begin].first) ++end;
     ++r.edges;
     const std::size_t count = end - begin;
-    if (count == 1) ++boundary;
-    if (count > 2) ++nonmanifold_edges;
+    const std::uint64_t key = half_edges[begin].first;
+    if (count == 1 && boundary++ == 0) first_boundary = key;
+    if (count > 2 && nonmanifold_edges++ == 0) first_nonmanifold = key;
     // sorted, so a manifold edge traversed once in each direction is (false, true)
-    if (count == 2 && half_edges[begin].second == half_edges[begin + 1].second) ++misoriented;
+    if (count == 2 && half_edges[begin].second == half_edges[begin + 1].second && misoriented++ == 0)
+      first_misoriented = key;
   }
   if (boundary > 0)
     add("boundary edges", boundary, true,
-        plural(boundary, "boundary edge", "boundary edges") + " (the surface is not closed: fill its holes)");
+        plural(boundary, "boundary edge", "boundary edges") +
+            " (the surface is not closed: fill its holes; first: " + edge_name(first_boundary) + ")");
   if (nonmanifold_edges > 0)
     add("non-manifold edges", nonmanifold_edges, true,
-        plural(nonmanifold_edges, "non-manifold edge", "non-manifold edges") + " (shared by more than 2 faces)");
+        plural(nonmanifold_edges, "non-manifold edge", "non-manifold edges") +
+            " (shared by more than 2 faces; first: " + edge_name(first_nonmanifold) + ")");
   if (misoriented > 0)
     add("inconsistent orientation", misoriented, true,
         plural(misoriented, "edge has", "edges have") +
-            " both adjacent faces traversing it in the same direction (inconsistent face orientation)");
+            " both adjacent faces traversing it in the same direction (inconsistent face orientation; first: " +
+            edge_name(first_misoriented) + ")");
 
   // Non-manifold vertices: the faces around a vertex must form one fan (connected through edges).
   {
@@ -171,7 +226,7 @@ Validation validate(const Mesh& mesh, const ReadInfo& info) {
       if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) continue;
       for (int i : t) incident[static_cast<std::size_t>(fill[static_cast<std::size_t>(i)]++)] = static_cast<int>(f);
     }
-    std::size_t bad = 0;
+    std::size_t bad = 0, first_bad = 0;
     std::vector<std::pair<int, int>> others;
     for (std::size_t v = 0; v < nv; ++v) {
       const int s = offsets[v], e = offsets[v + 1];
@@ -190,12 +245,12 @@ Validation validate(const Mesh& mesh, const ReadInfo& info) {
       int roots = 0;
       for (int k = 0; k < e - s; ++k)
         if (uf.find(k) == k) ++roots;
-      if (roots > 1) ++bad;
+      if (roots > 1 && bad++ == 0) first_bad = v;
     }
     if (bad > 0)
       add("non-manifold vertices", bad, true,
           plural(bad, "non-manifold vertex", "non-manifold vertices") +
-              " (the faces around it form more than one fan)");
+              " (the faces around it form more than one fan; first: vertex " + std::to_string(first_bad) + ")");
   }
 
   // Components.
@@ -203,12 +258,19 @@ Validation validate(const Mesh& mesh, const ReadInfo& info) {
     UnionFind uf(nv);
     for (const auto& f : mesh.faces) uf.unite(f[0], f[1]), uf.unite(f[1], f[2]);
     int comps = 0;
+    std::vector<std::size_t> representatives;  // the first vertex of each component
     for (std::size_t i = 0; i < nv; ++i)
       if (used[i] && uf.find(static_cast<int>(i)) == static_cast<int>(i)) ++comps;
+    for (std::size_t i = 0; i < nv && representatives.size() < 2; ++i)
+      if (used[i] && (representatives.empty() ||
+                      uf.find(static_cast<int>(i)) != uf.find(static_cast<int>(representatives.front()))))
+        representatives.push_back(i);
     r.components = comps;
     if (comps > 1)
       add("several components", static_cast<std::size_t>(comps), true,
-          std::to_string(comps) + " connected components (a spherical map needs exactly one)");
+          std::to_string(comps) + " connected components (a spherical map needs exactly one; vertices " +
+              std::to_string(representatives[0]) + " and " + std::to_string(representatives[1]) +
+              " are in different ones)");
   }
 
   r.euler_characteristic = static_cast<int>(r.vertices) - static_cast<int>(r.edges) + static_cast<int>(nf);

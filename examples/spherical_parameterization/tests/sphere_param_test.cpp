@@ -24,6 +24,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
+using sdot::testing::read_text;
 using sdot::testing::write_text;
 
 fs::path temp_dir() {
@@ -97,6 +98,46 @@ TEST(MeshIo, RoundTripEveryFormat) {
       for (std::size_t i = 0; i < m.vertices.size(); ++i) ASSERT_EQ(back.vertices[i], m.vertices[i]) << name;
       EXPECT_EQ(info.polygons, 0u);
     }
+  }
+}
+
+TEST(MeshIo, FreeSurferByNameMagicOrFormat) {
+  const Mesh m = test::bumpy_sphere(2, 5, 0.3, 3);
+  for (const std::string name : {"lh.pial", "rh.white", "lh.sphere.reg", "x.inflated"}) {
+    EXPECT_EQ(mesh_format(name), "freesurfer") << name;
+    const auto path = (temp_dir() / name).string();
+    write_mesh(path, m);
+    ReadInfo info;
+    const Mesh back = read_mesh(path, &info);
+    EXPECT_EQ(info.format, "freesurfer");
+    ASSERT_EQ(back.faces, m.faces) << name;
+    for (std::size_t i = 0; i < m.vertices.size(); ++i)
+      for (int c = 0; c < 3; ++c)
+        ASSERT_EQ(back.vertices[i][c], static_cast<float>(m.vertices[i][c])) << name;  // float32 in the file
+  }
+  // The layout, byte by byte: magic, "created by" line and blank line, big-endian counts.
+  const std::string bytes = read_text(temp_dir() / "lh.pial");
+  EXPECT_EQ(bytes.substr(0, 3), "\xFF\xFF\xFE");
+  const std::size_t counts = bytes.find("\n\n") + 2;
+  EXPECT_EQ(bytes.substr(3, 10), "created by");
+  EXPECT_EQ(bytes.size(), counts + 8 + 12 * (m.vertices.size() + m.faces.size()));
+  EXPECT_EQ(static_cast<unsigned char>(bytes[counts + 3]), m.vertices.size() % 256);
+  // A name that says nothing: the magic bytes; a format given explicitly wins over the name.
+  write_text(temp_dir() / "surface", bytes);
+  EXPECT_EQ(read_mesh((temp_dir() / "surface").string()).faces, m.faces);
+  write_mesh((temp_dir() / "fs.off").string(), m, false, "freesurfer");
+  EXPECT_EQ(read_mesh((temp_dir() / "fs.off").string(), nullptr, "freesurfer").faces, m.faces);
+  EXPECT_THROW(read_mesh((temp_dir() / "fs.off").string()), FileError);  // not an OFF file
+  // Tags after the faces (FreeSurfer's volume geometry) are ignored.
+  write_text(temp_dir() / "tagged.pial", bytes + std::string("\0\0\0\x14valid = 1\n", 14));
+  EXPECT_EQ(read_mesh((temp_dir() / "tagged.pial").string()).faces, m.faces);
+  // A quad surface is named as such.
+  write_text(temp_dir() / "quad.pial", std::string("\xFF\xFF\xFF", 3) + std::string(20, '\0'));
+  try {
+    read_mesh((temp_dir() / "quad.pial").string());
+    ADD_FAILURE();
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("quad surface"), std::string::npos) << e.what();
   }
 }
 
@@ -678,6 +719,24 @@ TEST(Command, EndToEndWithReportAndSvg) {
                           "\"max_relative_mass_error\"", "\"times\"", "\"flips\": 0"})
     EXPECT_NE(text.find(key), std::string::npos) << key;
   EXPECT_TRUE(fs::exists(svg));
+}
+
+TEST(Command, FreeSurferInFreeSurferSphereOfRadius100Out) {
+  const Mesh m = test::bumpy_sphere(3, 6, 0.4, 2);
+  const auto in = (temp_dir() / "lh.white").string(), out = (temp_dir() / "lh.sphere").string();
+  write_mesh(in, m);
+  const std::string cmd = std::string(SPHPARAM_COMMAND) + " " + in + " -o " + out + " --radius 100 --quiet";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  ReadInfo info;
+  const Mesh o = read_mesh(out, &info);
+  EXPECT_EQ(info.format, "freesurfer");
+  EXPECT_EQ(o.faces, m.faces);
+  for (const auto& v : o.vertices) EXPECT_NEAR(v.norm(), 100.0, 1e-4);  // float32 coordinates
+  // --format overrides the name.
+  const auto as_off = (temp_dir() / "sphere_as_freesurfer.off").string();
+  const std::string cmd2 = std::string(SPHPARAM_COMMAND) + " " + in + " -o " + as_off + " --format freesurfer --quiet";
+  ASSERT_EQ(std::system(cmd2.c_str()), 0);
+  EXPECT_EQ(read_mesh(as_off, nullptr, "freesurfer").faces, m.faces);
 }
 
 TEST(Command, InvalidInputIsRejectedWithMessage) {

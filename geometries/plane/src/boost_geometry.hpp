@@ -8,8 +8,10 @@
 // Boost 1.74's Boost.Geometry includes a header it deprecated itself (a #pragma message).
 #define BOOST_ALLOW_DEPRECATED_HEADERS
 
-#pragma GCC diagnostic push  // false positives inside Boost.Geometry at -O2
+#pragma GCC diagnostic push  // GCC's false positives inside Boost.Geometry at -O2 (Clang has no such warning)
+#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 #include <boost/geometry.hpp>
 #include <boost/geometry/geometries/point_xy.hpp>
 #include <boost/geometry/geometries/polygon.hpp>

@@ -192,6 +192,15 @@ class ScaleTree {
   std::vector<double> max_scale_;
 };
 
+/// What to subtract from heights before forming e^h p, given the largest: cells and facet weights
+/// depend on height differences only. A damped-Newton trial step can spread heights by hundreds,
+/// and from h ≈ 236 the triple products of e^h p in the hull's predicates overflow (Qhull crashed
+/// on points of norm 1e156, found by tests/stress/stress_test.cpp); such heights are taken
+/// relative to the largest. Ordinary heights are used as they are, with their usual rounding.
+double height_offset(double largest) {
+  return largest > 100 ? largest : 0;
+}
+
 /// Clips the chart cell of site i (gnomonic chart at p_i with tangent frame t1, t2) with the
 /// half-plane ⟨X, q_i − q_j⟩ ≥ 0, X = t1 v₁ + t2 v₂ + p_i, divided by e^{h_j} and written without
 /// cancellation: −⟨p_j − p_i, t⟩·v + expm1(h_i − h_j) + |p_i − p_j|²/2 ≥ 0.
@@ -505,9 +514,10 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
   const std::size_t n = sites.size();
   std::vector<Vec3> p(n);
   std::vector<double> h(n);
+  const double offset = n > 0 ? height_offset(weights.maxCoeff()) : 0;
   for (std::size_t i = 0; i < n; ++i) {
     p[i] = sites[i].normalized();
-    h[i] = weights[static_cast<Eigen::Index>(i)];
+    h[i] = weights[static_cast<Eigen::Index>(i)] - offset;
   }
   Diagram<Point> diagram;
   diagram.cells.resize(n);
@@ -680,9 +690,10 @@ Diagram<Sphere::Point> Sphere::build_in_chart(std::span<const Point> sites, cons
   const std::size_t n = sites.size();
   std::vector<Vec3> dual(n), p(n);
   std::vector<double> h(n);
+  const double offset = n > 0 ? height_offset(weights.maxCoeff()) : 0;
   for (std::size_t i = 0; i < n; ++i) {
     p[i] = sites[i].normalized();
-    h[i] = weights[static_cast<Eigen::Index>(i)];
+    h[i] = weights[static_cast<Eigen::Index>(i)] - offset;
     dual[i] = frame_.transpose() * (std::exp(h[i]) * p[i]);
   }
   // Neighbour candidates from the chart's regular triangulation; each cell is the chart domain
@@ -842,8 +853,9 @@ CellIntegrals<Sphere::Point> Sphere::integrate(const Cell<Point>& cell, const Po
 
 double Sphere::facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i, const Point& site_j,
                             double weight_j) const {
-  const Vec3 qi = std::exp(weight_i) * site_i.normalized();
-  const double gap = (qi - std::exp(weight_j) * site_j.normalized()).norm();
+  const double offset = height_offset(std::max(weight_i, weight_j));  // the ratio below is scale-free
+  const Vec3 qi = std::exp(weight_i - offset) * site_i.normalized();
+  const double gap = (qi - std::exp(weight_j - offset) * site_j.normalized()).norm();
   const Vec3 normal = a.cross(b - a);
   const double s = normal.norm();
   if (s == 0 || gap == 0) return 0;
@@ -853,8 +865,9 @@ double Sphere::facet_weight(const Point& a, const Point& b, const Point& site_i,
 
 double Sphere::facet_weight(const Point& a, const Point& b, const Point& site_i, double weight_i, const Point& site_j,
                             double weight_j, const ScalarField<Point>& rho, int order) const {
-  const Vec3 qi = std::exp(weight_i) * site_i.normalized();
-  const double gap = (qi - std::exp(weight_j) * site_j.normalized()).norm();
+  const double offset = height_offset(std::max(weight_i, weight_j));  // the ratio below is scale-free
+  const Vec3 qi = std::exp(weight_i - offset) * site_i.normalized();
+  const double gap = (qi - std::exp(weight_j - offset) * site_j.normalized()).norm();
   const Vec3 normal = a.cross(b - a);
   const double s = normal.norm();
   if (s == 0 || gap == 0) return 0;
