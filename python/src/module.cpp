@@ -153,6 +153,7 @@ py::tuple sphere_parameterization(const py::array_t<double>& vertices, const py:
     message.pop_back();
     throw sdot::InputError("mesh", message);
   }
+  if (result.status == "failed") throw sdot::Error(result.errors.front());
   py::array_t<double> initial_d(static_cast<py::ssize_t>(result.initial.d.size()));
   py::array_t<double> final_d(static_cast<py::ssize_t>(result.final_map.d.size()));
   std::copy(result.initial.d.begin(), result.initial.d.end(), initial_d.mutable_data());

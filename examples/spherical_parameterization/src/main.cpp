@@ -242,6 +242,11 @@ int main(int argc, char** argv) {
       write_report();
       return 2;
     }
+    if (run.status == "failed") {
+      std::cerr << "error: " << input << ": " << run.errors.front() << " (an internal error); nothing written\n";
+      write_report();
+      return 1;
+    }
     for (auto& v : run.output.vertices) v *= radius;
     t = std::chrono::steady_clock::now();
     write_mesh(output, run.output, ply_ascii, output_format);

@@ -1,6 +1,8 @@
 #include "run.hpp"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <utility>
 
 namespace sphparam {
@@ -24,7 +26,18 @@ RunResult run_parameterization(const Mesh& raw, const ReadInfo& info, PipelineOp
   RunResult result;
   json& report = result.report;
   report["input"] = input_name;
-  const Validation v = validate(raw, info);
+  // The map does not depend on the mesh's scale, but its arithmetic does: coordinates of 1e200
+  // overflow the areas, and 1e-200 underflow them. A power-of-two scale bringing the largest
+  // coordinate into [0.5, 1) is exact, so ordinary meshes give the same bits as unscaled.
+  int exponent = 0;
+  double largest = 0;
+  for (const auto& p : raw.vertices)
+    if (p.allFinite()) largest = std::max(largest, p.cwiseAbs().maxCoeff());
+  if (largest > 0) std::frexp(largest, &exponent);
+  Mesh scaled = raw;
+  for (auto& p : scaled.vertices)
+    for (int c = 0; c < 3; ++c) p[c] = std::ldexp(p[c], -exponent);
+  const Validation v = validate(scaled, info);
   json defects = json::array();
   for (const auto& d : v.defects) {
     defects.push_back({{"defect", d.name}, {"count", d.count}, {"fatal", d.fatal}, {"message", d.message}});
@@ -37,7 +50,7 @@ RunResult run_parameterization(const Mesh& raw, const ReadInfo& info, PipelineOp
                                 {"edges", v.edges},
                                 {"euler_characteristic", v.euler_characteristic},
                                 {"components", v.components},
-                                {"signed_volume", v.signed_volume},
+                                {"signed_volume", std::ldexp(v.signed_volume, 3 * exponent)},
                                 {"orientation", v.inward ? -1 : 1},
                                 {"min_angle_deg", v.min_angle_deg},
                                 {"area_ratio_max_min", v.area_ratio},
@@ -50,7 +63,7 @@ RunResult run_parameterization(const Mesh& raw, const ReadInfo& info, PipelineOp
     options.progress("read " + input_name + " (" + std::to_string(v.vertices) + " vertices, " +
                      std::to_string(v.faces) + " faces)");
   std::vector<int>& kept = result.kept;
-  const Mesh mesh = drop_unreferenced(raw, &kept);
+  const Mesh mesh = drop_unreferenced(scaled, &kept);
   if (!vertex_factors.empty()) {
     options.vertex_factors.resize(kept.size());
     for (std::size_t i = 0; i < kept.size(); ++i)
@@ -66,6 +79,13 @@ RunResult run_parameterization(const Mesh& raw, const ReadInfo& info, PipelineOp
   result.output = mesh;
   result.output.vertices = R.sphere;
   for (auto& p : result.output.vertices) p.normalize();
+  for (std::size_t i = 0; i < result.output.vertices.size(); ++i)
+    if (!result.output.vertices[i].allFinite()) {  // never written: a bug to report, not a map
+      result.status = report["status"] = "failed";
+      report["error"] = "the map of vertex " + std::to_string(kept[i]) + " is not finite";
+      result.errors.push_back(report["error"].get<std::string>());
+      return result;
+    }
 
   const double sign = v.inward ? -1.0 : 1.0;
   if (initial_metrics) result.initial = evaluate_map(mesh, R.initial, sign);

@@ -370,6 +370,33 @@ TEST(AcceptedMesh, InwardOrientationIsMappedKeepingIt) {
   EXPECT_EQ(read_mesh(output.string()).faces, m.faces);
 }
 
+// Found by the OFF fuzz harness: coordinates of 1e200 overflowed the areas, and the command
+// wrote NaN vertices with exit code 0. The map does not depend on the scale.
+TEST(AcceptedMesh, HugeAndTinyCoordinatesMapLikeUnitOnes) {
+  const fs::path unit_output = scratch() / "unit_out.off";
+  std::ofstream(scratch() / "unit.off") << off_text(base());
+  ASSERT_EQ(run_command((scratch() / "unit.off").string() + " -o " + unit_output.string()).exit_code, 0);
+  const Mesh unit_map = read_mesh(unit_output.string());
+  for (const double scale : {0x1p600, 0x1p-600}) {  // powers of two: the same input bits scaled
+    Mesh m = base();
+    for (auto& v : m.vertices) v *= scale;
+    const fs::path input = scratch() / "scaled.off", output = scratch() / "scaled_out.off";
+    std::ofstream(input) << off_text(m);
+    const CommandRun r = run_command(input.string() + " -o " + output.string());
+    ASSERT_EQ(r.exit_code, 0) << scale << ": " << r.err;
+    const Mesh map = read_mesh(output.string());
+    ASSERT_EQ(map.vertices.size(), unit_map.vertices.size());
+    for (std::size_t i = 0; i < map.vertices.size(); ++i) EXPECT_EQ(map.vertices[i], unit_map.vertices[i]) << i;
+  }
+  // The fuzzer's input: a tetrahedron with one corner at the origin and three at 1e200.
+  const fs::path tetra = scratch() / "tetra.off", tetra_output = scratch() / "tetra_out.off";
+  std::ofstream(tetra) << "OFF\n4 4 0\n0 0 0\n1e200 0 0\n0 1e200 0\n0 0 1e200\n"
+                          "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
+  const CommandRun r = run_command(tetra.string() + " -o " + tetra_output.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const auto& v : read_mesh(tetra_output.string()).vertices) EXPECT_NEAR(v.norm(), 1.0, 1e-12);
+}
+
 TEST(BadOptions, ExitWithCode2NamingTheOption) {
   const fs::path input = scratch() / "options.off";
   std::ofstream(input) << off_text(base());
