@@ -92,6 +92,12 @@ struct Validation {
 /// Checks a mesh for the defects listed in the issue. Counts every defect found.
 Validation validate(const Mesh& mesh, const ReadInfo& info = {});
 
+/// Scales `mesh` by the power of two that brings its largest finite coordinate into [0.5, 1) and
+/// returns the exponent e (the mesh was multiplied by 2^-e). Exact, so a map computed on the
+/// scaled mesh has the same bits as on the original, but coordinates of 1e200 no longer overflow
+/// the areas (nor 1e-200 underflow them).
+int scale_by_power_of_two(Mesh& mesh);
+
 /// Removes vertices that no face references; `kept[i]` is the old index of new vertex i.
 Mesh drop_unreferenced(const Mesh& mesh, std::vector<int>* kept = nullptr);
 

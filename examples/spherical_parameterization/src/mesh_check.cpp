@@ -78,6 +78,17 @@ Mesh drop_unreferenced(const Mesh& mesh, std::vector<int>* kept) {
   return out;
 }
 
+int scale_by_power_of_two(Mesh& mesh) {
+  double largest = 0;
+  for (const auto& p : mesh.vertices)
+    if (p.allFinite()) largest = std::max(largest, p.cwiseAbs().maxCoeff());
+  int exponent = 0;
+  if (largest > 0) std::frexp(largest, &exponent);
+  for (auto& p : mesh.vertices)
+    for (int c = 0; c < 3; ++c) p[c] = std::ldexp(p[c], -exponent);
+  return exponent;
+}
+
 Validation validate(const Mesh& mesh, const ReadInfo& info) {
   Validation r;
   auto add = [&](std::string name, std::size_t count, bool fatal, std::string message) {

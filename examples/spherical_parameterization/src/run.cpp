@@ -29,14 +29,8 @@ RunResult run_parameterization(const Mesh& raw, const ReadInfo& info, PipelineOp
   // The map does not depend on the mesh's scale, but its arithmetic does: coordinates of 1e200
   // overflow the areas, and 1e-200 underflow them. A power-of-two scale bringing the largest
   // coordinate into [0.5, 1) is exact, so ordinary meshes give the same bits as unscaled.
-  int exponent = 0;
-  double largest = 0;
-  for (const auto& p : raw.vertices)
-    if (p.allFinite()) largest = std::max(largest, p.cwiseAbs().maxCoeff());
-  if (largest > 0) std::frexp(largest, &exponent);
   Mesh scaled = raw;
-  for (auto& p : scaled.vertices)
-    for (int c = 0; c < 3; ++c) p[c] = std::ldexp(p[c], -exponent);
+  const int exponent = scale_by_power_of_two(scaled);
   const Validation v = validate(scaled, info);
   json defects = json::array();
   for (const auto& d : v.defects) {
