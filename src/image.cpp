@@ -1,4 +1,5 @@
 #include "sdot/image.hpp"
+#include "sdot/input_file.hpp"
 
 #include <png.h>
 
@@ -27,6 +28,7 @@ struct FileCloser {
 using File = std::unique_ptr<std::FILE, FileCloser>;
 
 std::vector<unsigned char> read_file(const std::string& path) {
+  require_regular_file(path);
   errno = 0;
   const File file(std::fopen(path.c_str(), "rb"));
   if (!file) throw InputError(path, std::string("cannot open file: ") + std::strerror(errno));

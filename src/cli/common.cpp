@@ -1,4 +1,5 @@
 #include "common.hpp"
+#include "sdot/input_file.hpp"
 
 #include <filesystem>
 #include <fstream>
@@ -124,6 +125,7 @@ std::optional<Eigen::VectorXd> read_weights(const json& problem, std::size_t sit
 }
 
 json read_json_file(const std::string& path, const std::string& what) {
+  require_regular_file(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot open " + what);
   std::stringstream buffer;

@@ -3,7 +3,6 @@
 // exception, a crash or a sanitizer report is a bug. A parsed mesh must have finite coordinates
 // and face indices in range, and then goes through validate(), as in sdot-sphere-param, which
 // must not return NaN.
-#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>

@@ -19,12 +19,18 @@
 
 #include "mesh.hpp"
 #include "sdot/error.hpp"
+#include "sdot/input_file.hpp"
 #include "sdot/output_file.hpp"
 
 namespace sphparam {
 namespace {
 
 std::string read_file(const std::string& path) {
+  try {
+    sdot::require_regular_file(path);
+  } catch (const sdot::InputError& e) {
+    throw FileError(e.what());
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw FileError(path + ": cannot open for reading (" + std::strerror(errno) + ")");
   std::ostringstream ss;

@@ -415,6 +415,9 @@ TEST(BadOptions, ExitWithCode2NamingTheOption) {
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     EXPECT_FALSE(fs::exists(output));
   }
+  const CommandRun device = run_command("/dev/zero --input-format off -o " + (scratch() / "o.off").string());
+  EXPECT_EQ(device.exit_code, 2);
+  EXPECT_NE(device.err.find("/dev/zero: is not a regular file"), std::string::npos) << device.err;
   const CommandRun missing =
       run_command((scratch() / "nowhere.off").string() + " -o " + (scratch() / "o.off").string());
   EXPECT_EQ(missing.exit_code, 2);
