@@ -280,7 +280,7 @@ TEST_F(ImageTest, MissingFile) {
 }
 
 TEST_F(ImageTest, DirectoryIsNotAnImage) {
-  expect_error(dir_.string(), "cannot read file");
+  expect_error(dir_.string(), "is a folder, not a file");
 }
 
 TEST_F(ImageTest, EmptyFile) {
