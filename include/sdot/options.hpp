@@ -49,6 +49,10 @@ struct Options {
   /// only there, and costs a pass of cost quadratures over every cell (sphere, 134,000 cells:
   /// about 0.2 s of a 4 s solve); with false, `transport_cost` is NaN.
   bool compute_transport_cost = true;
+  /// Partial transport (sdot/partial.hpp, docs/partial.md): cell i is its Laguerre cell cut by the
+  /// ball {x : c(x, y_i) ≤ w_i}, and the masses must sum to less than the source mass (they are not
+  /// rescaled). Needs a geometry with ball cuts (PartialGeometry) and the uniform density.
+  bool partial = false;
   /// Called after each iteration (progress output); may be empty.
   std::function<void(const IterationRecord&)> callback;
 

@@ -21,6 +21,7 @@
 #include "sdot/geometry.hpp"
 #include "sdot/linear_solver.hpp"
 #include "sdot/options.hpp"
+#include "sdot/partial.hpp"
 
 /// Semi-discrete optimal transport on the plane, the sphere and the hyperbolic plane: sdot::solve
 /// and what it is built from (geometries, densities, linear solvers, the cell builder).
@@ -35,7 +36,9 @@ struct Result {
   std::vector<Point> centroids;   ///< centroid of each cell (the site itself for an empty cell)
   double transport_cost = 0;      ///< Σ_i ∫_{W_i} c(x, y_i) dμ (NaN if Options::compute_transport_cost is false)
   Diagram<Point> diagram;         ///< the cells at `weights`
-  Summary summary;                ///< how the solve ended, the final errors, history and timings
+  /// Partial transport only (Options::partial): the radius c⁻¹(w_i) of each site's ball; else empty.
+  Eigen::VectorXd ball_radii;
+  Summary summary;  ///< how the solve ended, the final errors, history and timings
 
   /// Neighbour lists of the cells.
   [[nodiscard]] std::vector<std::vector<int>> adjacency() const { return sdot::adjacency(diagram); }
@@ -51,16 +54,20 @@ struct Evaluation {
   /// by increasing i and, for one i, in the order of its cell's edges: the same at every call.
   /// Empty unless asked for (`with_hessian`).
   std::vector<Eigen::Triplet<double>> facet_weights;
+  /// Partial transport with `with_hessian`: per cell, ∫ ρ / |∇c_i| over its ball arcs (the arcs'
+  /// term of the Hessian's diagonal); else empty.
+  Eigen::VectorXd arc_weights;
 };
 
 /// Builds the diagram and integrates every cell and (optionally) every facet; `with_cost` false
 /// leaves the cells' transport costs at 0 (the Newton iterations do not need them);
 /// `stop_at_empty_cell` (for line searches, which reject steps that empty a cell) lets a geometry
-/// that supports it stop building at the first empty cell and leave other cells empty too.
+/// that supports it stop building at the first empty cell and leave other cells empty too;
+/// `partial` cuts every cell by its site's ball (a PartialGeometry and ρ ≡ 1 only).
 template <Geometry G, Density<G> D>
 Evaluation<typename G::Point> evaluate(const G& geometry, const D& density, std::span<const typename G::Point> sites,
                                        const Eigen::VectorXd& weights, bool with_hessian, Timings* timings = nullptr,
-                                       bool with_cost = true, bool stop_at_empty_cell = false);
+                                       bool with_cost = true, bool stop_at_empty_cell = false, bool partial = false);
 
 /// Solves the semi-discrete transport problem from `density` on the geometry's source domain
 /// to the Diracs Σ ν_i δ_{y_i}: finds weights whose cells have masses ν.

@@ -3,10 +3,12 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <numeric>
 #include <random>
 
 #include "sdot/error.hpp"
+#include "sdot/partial.hpp"
 #include "sdot/quadrature.hpp"
 
 namespace sdot {
@@ -93,7 +95,102 @@ Diagram<Plane::Point> Plane::build_diagram(std::span<const Point> sites, const E
   return diagram;
 }
 
+namespace {
+/// The angle in [0, 2π) from u to v, counter-clockwise.
+double turn_angle(const Vec2& u, const Vec2& v) {
+  const double angle = std::atan2(cross(u, v), u.dot(v));
+  return angle < 0 ? angle + 2 * std::numbers::pi : angle;
+}
+
+/// Integrals of a cell with ball arcs: a fan from the site of triangles (site, a, b) for straight
+/// edges and circular sectors for arcs, all signed, so the site may lie outside the cell.
+CellIntegrals<Vec2> integrate_with_arcs(const Cell<Vec2>& cell, const Vec2& site) {
+  double area = 0, second = 0;
+  Vec2 moment = Vec2::Zero();  // about the site
+  const std::size_t n = cell.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    const Vec2 u = cell.vertices[k] - site, v = cell.vertices[(k + 1) % n] - site;
+    if (is_ball_arc(cell.neighbors[k])) {
+      const double r2 = (u.squaredNorm() + v.squaredNorm()) / 2;
+      const double angle = turn_angle(u, v);
+      area += r2 * angle / 2;
+      // ∫ over the sector of (x − y) = r³/3 ∫ (cos φ, sin φ) dφ = r³/3 · rot₋₉₀(u₁ − u₀) with u unit.
+      const Vec2 d = (v - u) * (r2 / 3);
+      moment += Vec2(d.y(), -d.x());
+      second += r2 * r2 * angle / 4;
+    } else {
+      const double c = cross(u, v);
+      area += c / 2;
+      moment += c / 6 * (u + v);
+      second += c / 12 * (u.squaredNorm() + u.dot(v) + v.squaredNorm());
+    }
+  }
+  CellIntegrals<Vec2> result;
+  result.mass = area;
+  result.first_moment = area * site + moment;
+  result.cost = second / 2;
+  return result;
+}
+}  // namespace
+
+Cell<Plane::Point> Plane::cut_by_ball(const Cell<Point>& cell, const Point& site, double weight) const {
+  if (cell.empty() || !(weight > 0)) return {};
+  const double radius = ball_radius(weight);
+  struct Ball {
+    Vec2 site;
+    double radius;
+    detail::EdgeInBall<Vec2> clip(const Vec2& a, const Vec2& b, int) const {
+      const Vec2 d = b - a;
+      const double length = d.norm();
+      if (!(length > 0)) return {};
+      const Vec2 direction = d / length;
+      const double along = (site - a).dot(direction), across = cross(direction, site - a);
+      const double half = radius * radius - across * across;
+      return detail::edge_interval(along, half > 0 ? std::sqrt(half) : 0.0, length, a, b,
+                                   [&](double s) { return Vec2(a + s * direction); });
+    }
+    double angle(const Vec2& p, const Vec2& q) const { return turn_angle(p - site, q - site); }
+    Vec2 rotate(const Vec2& p, double angle) const {
+      const Vec2 u = p - site;
+      const double c = std::cos(angle), s = std::sin(angle);
+      return site + Vec2(c * u.x() - s * u.y(), s * u.x() + c * u.y());
+    }
+    Vec2 boundary_point() const { return site + Vec2(radius, 0); }
+    bool contains_site(const Cell<Vec2>& polygon) const {
+      for (std::size_t k = 0; k < polygon.size(); ++k) {
+        const Vec2& a = polygon.vertices[k];
+        if (cross(polygon.vertices[(k + 1) % polygon.size()] - a, site - a) < 0) return false;
+      }
+      return true;
+    }
+  };
+  return detail::cut_cell_by_ball(cell, Ball{site, radius});
+}
+
+double Plane::arc_weight(const Cell<Point>& cell, const Point& site) const {
+  double angle = 0;
+  for (std::size_t k = 0; k < cell.size(); ++k)
+    if (is_ball_arc(cell.neighbors[k]))
+      angle += turn_angle(cell.vertices[k] - site, cell.vertices[(k + 1) % cell.size()] - site);
+  return angle;
+}
+
+std::pair<double, double> Plane::cost_range(const Cell<Point>& cell, const Point& site) const {
+  double nearest = INFINITY, farthest = 0;
+  bool inside = true;
+  for (std::size_t k = 0; k < cell.size(); ++k) {
+    const Vec2& a = cell.vertices[k];
+    const Vec2 d = cell.vertices[(k + 1) % cell.size()] - a;
+    if (cross(d, site - a) < 0) inside = false;
+    const double t = d.squaredNorm() > 0 ? std::clamp((site - a).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
+    nearest = std::min(nearest, cost(a + t * d, site));
+    farthest = std::max(farthest, cost(a, site));
+  }
+  return {inside ? 0.0 : nearest, farthest};
+}
+
 CellIntegrals<Plane::Point> Plane::integrate(const Cell<Point>& cell, const Point& site, bool) const {
+  if (std::any_of(cell.neighbors.begin(), cell.neighbors.end(), is_ball_arc)) return integrate_with_arcs(cell, site);
   // The cost is a by-product of the moments here, so it is always computed.
   // Area, first and second moments about the first vertex o, then shifted to the site.
   const Vec2 o = cell.vertices[0];

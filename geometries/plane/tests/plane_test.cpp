@@ -6,6 +6,7 @@
 #include <random>
 
 #include "conformance/conformance.hpp"
+#include "conformance/partial_conformance.hpp"
 #include "sdot/geometries/plane.hpp"
 #include "sdot/solver.hpp"
 
@@ -36,6 +37,21 @@ struct ConformanceTraits<Plane> {
 };
 
 INSTANTIATE_TYPED_TEST_SUITE_P(Plane, GeometryConformance, ::testing::Types<Plane>);
+
+template <>
+struct PartialTraits<Plane> {
+  static double disc_area(double radius) { return std::numbers::pi * radius * radius; }
+  static std::vector<Plane::Point> separate_sites() { return {{1.0, 0.9}, {0.2, 0.5}, {1.8, 0.4}, {1.2, 1.6}}; }
+  static Plane::Point arc_point(const Plane::Point& site, const Plane::Point& a, const Plane::Point& b, double t) {
+    const Plane::Point u = a - site, v = b - site;
+    double angle = std::atan2(u.x() * v.y() - u.y() * v.x(), u.dot(v));
+    if (angle < 0) angle += 2 * std::numbers::pi;
+    const double c = std::cos(t * angle), s = std::sin(t * angle);
+    return site + Plane::Point(c * u.x() - s * u.y(), s * u.x() + c * u.y());
+  }
+};
+
+INSTANTIATE_TYPED_TEST_SUITE_P(Plane, PartialConformance, ::testing::Types<Plane>);
 
 namespace {
 
@@ -240,7 +256,6 @@ TEST(Plane, CallbackSeesEveryIteration) {
 }
 
 // ---- bad input -------------------------------------------------------------------------
-
 
 TEST(PlaneBadInput, NonFiniteCoordinates) {
   std::vector<Plane::Point> sites{{0.1, 0.1}, {NAN, 0.5}, {0.9, 0.9}};

@@ -58,6 +58,12 @@ double arc_angle(const Vec3& a, const Vec3& b, const Vec3& center) {
   return std::atan2(center.dot(a.cross(b)), a.dot(b) - a.dot(center) * b.dot(center));
 }
 
+/// The angle of a ball arc (partial transport) from a to b around `center`, in [0, 2π).
+double ball_arc_angle(const Vec3& a, const Vec3& b, const Vec3& center) {
+  const double angle = arc_angle(a, b, center);
+  return angle < 0 ? angle + 2 * pi : angle;
+}
+
 /// Point at angle θ counter-clockwise around `center` from a.
 Vec3 rotate_about(const Vec3& a, const Vec3& center, double theta) {
   const double along = a.dot(center);
@@ -230,7 +236,7 @@ constexpr double largest_piece = 0.3;
 /// split into m × m pieces with a tensor Gauss–Legendre rule (dA = s·det(o, γ, γ')/|X|³ ds dt).
 /// `order` may depend on the piece size (`order_for(size)`).
 template <class Order, class F>
-void for_each_node(const Sphere& sphere, const Cell<Vec3>& cell, Order&& order_for, F&& f) {
+void for_each_node(const Sphere& sphere, const Cell<Vec3>& cell, Order&& order_for, F&& f, const Vec3* site = nullptr) {
   Vec3 o = Vec3::Zero();
   for (const auto& v : cell.vertices) o += v;
   o.normalize();
@@ -238,7 +244,8 @@ void for_each_node(const Sphere& sphere, const Cell<Vec3>& cell, Order&& order_f
   for (std::size_t k = 0; k < n; ++k) {
     const Vec3& a = cell.vertices[k];
     const Vec3& b = cell.vertices[(k + 1) % n];
-    if (!sphere.is_circle_arc(cell.neighbors[k])) {
+    const bool ball_arc = site && is_ball_arc(cell.neighbors[k]);
+    if (!ball_arc && !sphere.is_circle_arc(cell.neighbors[k])) {
       const Vec3 ab = a - o, ac = b - o;
       const double det = o.dot(ab.cross(ac));
       if (det == 0) continue;
@@ -261,9 +268,10 @@ void for_each_node(const Sphere& sphere, const Cell<Vec3>& cell, Order&& order_f
           if (u + v + 2 <= m) sub((u + 1) * h, v * h, 0, h, -h, h);  // (u+1,v) (u+1,v+1) (u,v+1)
         }
     } else {
-      const Vec3& c = sphere.center();
-      const double phi = arc_angle(a, b, c);
-      const double size = std::max({(a - o).norm(), (b - o).norm(), phi * std::sin(sphere.cap_angle())});
+      const Vec3& c = ball_arc ? *site : sphere.center();
+      const double phi = ball_arc ? ball_arc_angle(a, b, c) : arc_angle(a, b, c);
+      const double sine = ball_arc ? a.cross(c).norm() : std::sin(sphere.cap_angle());
+      const double size = std::max({(a - o).norm(), (b - o).norm(), phi * sine});
       const int m = std::max(1, static_cast<int>(std::ceil(size / largest_piece)));
       const auto& line = gauss_legendre(order_for(size / m));
       const double h = 1.0 / m;
@@ -797,6 +805,113 @@ Diagram<Sphere::Point> Sphere::build_in_chart(std::span<const Point> sites, cons
   return diagram;
 }
 
+// ---- partial transport ------------------------------------------------------------------
+
+Cell<Sphere::Point> Sphere::cut_by_ball(const Cell<Point>& cell, const Point& site, double weight) const {
+  if (cell.empty() || !(weight > 0)) return {};
+  // The ball {x : −ln⟨x, p⟩ ≤ w} is the cap ⟨x, p⟩ ≥ e^{−w} of angular radius α = arccos e^{−w} < π/2.
+  struct Ball {
+    const Sphere& sphere;
+    Vec3 p;
+    double cos_radius, sin_radius;
+    detail::EdgeInBall<Vec3> clip(const Vec3& a, const Vec3& b, int label) const {
+      if (sphere.is_circle_arc(label)) {
+        // On the cap's circle x(θ) = a rotated by θ about c: ⟨x, p⟩ = K + U cos θ + V sin θ.
+        const Vec3& c = sphere.center();
+        const double length = arc_angle(a, b, c);
+        const Vec3 radial = a - a.dot(c) * c;
+        const double k = a.dot(c) * c.dot(p), u = radial.dot(p), v = c.cross(radial).dot(p), r = std::hypot(u, v);
+        if (!(r > 0) || !(r + k > cos_radius)) return {};
+        if (k - r >= cos_radius) return {true, true, true, a, b};  // the whole circle is in the ball
+        double center = std::atan2(v, u);
+        const double half = std::acos((cos_radius - k) / r);
+        if (center + half < 0) center += 2 * pi;
+        return detail::edge_interval(center, half, length, a, b,
+                                     [&](double theta) { return rotate_about(a, c, theta); });
+      }
+      // On the great arc x(θ) = cos θ a + sin θ t, θ ∈ [0, L]: ⟨x, p⟩ = R cos(θ − θ*), inside the
+      // cap for |θ − θ*| ≤ arccos(cos α / R).
+      const Vec3 normal = a.cross(b - a);
+      const double s = normal.norm();
+      if (!(s > 0)) return {};
+      const double length = std::atan2(s, a.dot(b));
+      const Vec3 tangent = (normal / s).cross(a);
+      const double u = a.dot(p), v = tangent.dot(p), r = std::hypot(u, v);
+      if (!(r > cos_radius)) return {};
+      double center = std::atan2(v, u);
+      const double half = std::acos(cos_radius / r);
+      if (center + half < 0) center += 2 * pi;  // the arc lies within θ ∈ [0, π)
+      return detail::edge_interval(center, half, length, a, b,
+                                   [&](double theta) { return Vec3(std::cos(theta) * a + std::sin(theta) * tangent); });
+    }
+    double angle(const Vec3& a, const Vec3& b) const { return ball_arc_angle(a, b, p); }
+    Vec3 rotate(const Vec3& a, double theta) const { return rotate_about(a, p, theta); }
+    Vec3 boundary_point() const { return cos_radius * p + sin_radius * frame_at(p).col(0); }
+    bool contains_site(const Cell<Vec3>& polygon) const {
+      for (std::size_t k = 0; k < polygon.size(); ++k)
+        if (p.dot(polygon.vertices[k].cross(polygon.vertices[(k + 1) % polygon.size()])) < 0) return false;
+      return true;
+    }
+  };
+  const double cos_radius = std::exp(-weight);
+  // sin α = √(1 − e^{−2w}) = √(−expm1(−2w)), accurate for small w.
+  return detail::cut_cell_by_ball(cell,
+                                  Ball{*this, site.normalized(), cos_radius, std::sqrt(-std::expm1(-2 * weight))});
+}
+
+double Sphere::arc_weight(const Cell<Point>& cell, const Point& site) const {
+  // |∇c| = tan α on the circle and ds = sin α dφ: each arc gives cos α · φ.
+  const Vec3 p = site.normalized();
+  double weight = 0;
+  for (std::size_t k = 0; k < cell.size(); ++k)
+    if (is_ball_arc(cell.neighbors[k])) {
+      const Vec3& a = cell.vertices[k];
+      weight += a.dot(p) * ball_arc_angle(a, cell.vertices[(k + 1) % cell.size()], p);
+    }
+  return weight;
+}
+
+double Sphere::ball_radius(double weight) {
+  return weight > 0 ? std::acos(std::exp(-weight)) : 0;
+}
+
+std::pair<double, double> Sphere::cost_range(const Cell<Point>& cell, const Point& site) const {
+  // The cost grows with the distance: its extremes are those of ⟨x, p⟩ over the cell, the largest
+  // at p itself (inside) or on an edge, the smallest at a vertex or on a cap arc.
+  const Vec3 p = site.normalized();
+  double nearest = -1, farthest = 2;
+  bool inside = true;
+  const std::size_t n = cell.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    const Vec3& a = cell.vertices[k];
+    const Vec3& b = cell.vertices[(k + 1) % n];
+    if (p.dot(a.cross(b)) < 0) inside = false;
+    farthest = std::min(farthest, a.dot(p));
+    nearest = std::max(nearest, a.dot(p));
+    if (is_circle_arc(cell.neighbors[k])) {
+      // Along the cap's circle ⟨x, p⟩ = K + U cos θ + V sin θ (as in validate_sites).
+      const double phi = arc_angle(a, b, center_);
+      const Vec3 radial = a - a.dot(center_) * center_;
+      const double u = radial.dot(p), v = center_.cross(radial).dot(p);
+      double theta = std::atan2(v, u);
+      if (theta < 0) theta += 2 * pi;
+      if (theta <= phi) nearest = std::max(nearest, a.dot(center_) * center_.dot(p) + std::hypot(u, v));
+      theta = std::atan2(v, u) + pi;
+      if (theta >= 2 * pi) theta -= 2 * pi;
+      if (theta <= phi) farthest = std::min(farthest, a.dot(center_) * center_.dot(p) - std::hypot(u, v));
+      continue;
+    }
+    const Vec3 normal = a.cross(b - a);
+    const double s = normal.norm();
+    if (!(s > 0)) continue;
+    const Vec3 tangent = (normal / s).cross(a);
+    const double theta = std::atan2(tangent.dot(p), a.dot(p));
+    if (theta > 0 && theta < std::atan2(s, a.dot(b))) nearest = std::max(nearest, std::hypot(a.dot(p), tangent.dot(p)));
+  }
+  auto cost_at = [](double cosine) { return cosine > 0 ? -std::log(cosine) : INFINITY; };
+  return {inside ? 0.0 : cost_at(nearest), cost_at(farthest)};
+}
+
 // ---- integrals -------------------------------------------------------------------------
 
 CellIntegrals<Sphere::Point> Sphere::integrate(const Cell<Point>& cell, const Point& site, bool with_cost) const {
@@ -811,14 +926,20 @@ CellIntegrals<Sphere::Point> Sphere::integrate(const Cell<Point>& cell, const Po
     const Vec3& a = cell.vertices[k];
     const Vec3& b = cell.vertices[(k + 1) % n];
     if (k >= 1 && k + 1 < n) area += triangle_area(x0, a, b);
-    if (is_circle_arc(cell.neighbors[k])) {
+    const bool ball_arc = is_ball_arc(cell.neighbors[k]);
+    if (ball_arc || is_circle_arc(cell.neighbors[k])) {
       // The segment between the circle arc and the great arc ab: sector minus triangle; its
       // first moment from the arc's inward conormal (c − cos α x)/sin α (math.md §2 extended).
-      const double phi = arc_angle(a, b, center_);
+      // The cap's circle, or the site's ball (partial transport), of angular radius α.
+      const Vec3& c = ball_arc ? p : center_;
+      const double phi = ball_arc ? ball_arc_angle(a, b, c) : arc_angle(a, b, c);
+      const double sin_a = ball_arc ? a.cross(c).norm() : std::sin(angle_);
+      const double cos_a = ball_arc ? a.dot(c) : std::cos(angle_);
+      // 1 − cos α = sin²α / (1 + cos α) for the balls, without cancellation when they are small.
       const double sin_half = std::sin(angle_ / 2);
-      area += phi * 2 * sin_half * sin_half - triangle_area(center_, a, b);
-      const double sin_a = std::sin(angle_), cos_a = std::cos(angle_);
-      moment += 0.5 * (phi * sin_a * sin_a * center_ - cos_a * center_.cross(a - b));
+      const double one_minus_cos = ball_arc ? sin_a * sin_a / (1 + cos_a) : 2 * sin_half * sin_half;
+      area += phi * one_minus_cos - triangle_area(c, a, b);
+      moment += 0.5 * (phi * sin_a * sin_a * c - cos_a * c.cross(a - b));
     } else {
       // ½ L n_in with n_in = a × b / |a × b| for a counter-clockwise edge.
       const Vec3 normal = a.cross(b - a);
@@ -830,7 +951,8 @@ CellIntegrals<Sphere::Point> Sphere::integrate(const Cell<Point>& cell, const Po
   result.first_moment = moment;
   if (!with_cost) return result;  // the cost quadrature is most of this function's time
   double cost = 0;
-  for_each_node(*this, cell, cost_order, [&](const Vec3& x, double w) { cost += w * log_cost(x, p); });
+  for_each_node(
+      *this, cell, cost_order, [&](const Vec3& x, double w) { cost += w * log_cost(x, p); }, &p);
   result.cost = cost;
   return result;
 }

@@ -8,6 +8,7 @@
 #include <random>
 
 #include "conformance/conformance.hpp"
+#include "conformance/partial_conformance.hpp"
 #include "sdot/geometries/sphere.hpp"
 #include "sdot/quadrature.hpp"
 #include "sdot/solver.hpp"
@@ -142,6 +143,37 @@ struct ConformanceTraits<SpherePolygon> {
 INSTANTIATE_TYPED_TEST_SUITE_P(Sphere, GeometryConformance, ::testing::Types<Sphere>);
 INSTANTIATE_TYPED_TEST_SUITE_P(SphereCap, GeometryConformance, ::testing::Types<SphereCap>);
 INSTANTIATE_TYPED_TEST_SUITE_P(SpherePolygon, GeometryConformance, ::testing::Types<SpherePolygon>);
+
+/// The partial-transport traits of the whole sphere and of the cap (whose cells have both the
+/// cap's arcs and the balls' arcs).
+struct SpherePartialTraits {
+  static double disc_area(double radius) { return 4 * pi * std::pow(std::sin(radius / 2), 2); }
+  static Vec arc_point(const Vec& site, const Vec& a, const Vec& b, double t) {
+    const Vec p = site.normalized();
+    double angle = std::atan2(p.dot(a.cross(b)), a.dot(b) - a.dot(p) * b.dot(p));
+    if (angle < 0) angle += 2 * pi;
+    const Vec radial = a - a.dot(p) * p;
+    return a.dot(p) * p + std::cos(t * angle) * radial + std::sin(t * angle) * p.cross(radial);
+  }
+};
+template <>
+struct PartialTraits<Sphere> : SpherePartialTraits {
+  static std::vector<Vec> separate_sites() {
+    return {Vec(1, 1, 1).normalized(), Vec(1, -1, -1).normalized(), Vec(-1, 1, -1).normalized(),
+            Vec(-1, -1, 1).normalized()};
+  }
+};
+template <>
+struct PartialTraits<SphereCap> : SpherePartialTraits {
+  static std::vector<Vec> separate_sites() {
+    const SphereCap cap;
+    const Eigen::Matrix3d frame = Eigen::Quaterniond::FromTwoVectors(Vec::UnitZ(), cap.center()).toRotationMatrix();
+    const double r = 0.5 * std::tan(cap.cap_angle());
+    return {cap.center(), (frame * Vec(r, 0, 1)).normalized(), (frame * Vec(-r, 0.2 * r, 1)).normalized()};
+  }
+};
+INSTANTIATE_TYPED_TEST_SUITE_P(Sphere, PartialConformance, ::testing::Types<Sphere>);
+INSTANTIATE_TYPED_TEST_SUITE_P(SphereCap, PartialConformance, ::testing::Types<SphereCap>);
 
 namespace {
 

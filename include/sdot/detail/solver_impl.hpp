@@ -52,7 +52,10 @@ inline MassError mass_error(const Eigen::VectorXd& masses, const Eigen::VectorXd
 /// facets); four times faster than setFromTriplets, whose generic path sorted and merged four
 /// triplets per facet (bunny_35k's sites: 7–11 ms against 1.6–3.2 ms per matrix). The diagonal is
 /// summed in the order of `facet_weights`, so equal input gives an equal matrix.
-inline SparseMatrix assemble_hessian(Eigen::Index n, const std::vector<Eigen::Triplet<double>>& facet_weights) {
+/// With `arc_weights` (partial transport), they add to the diagonal; the matrix is then definite
+/// as soon as one arc weight is positive, and no site is pinned.
+inline SparseMatrix assemble_hessian(Eigen::Index n, const std::vector<Eigen::Triplet<double>>& facet_weights,
+                                     const Eigen::VectorXd& arc_weights = {}) {
   const auto column_size = static_cast<std::size_t>(n);
   std::vector<int> start(column_size + 1, 0);
   for (const auto& t : facet_weights)
@@ -70,7 +73,8 @@ inline SparseMatrix assemble_hessian(Eigen::Index n, const std::vector<Eigen::Tr
     diagonal[i] += w, diagonal[j] += w;
     largest = std::max(largest, std::abs(w));
   }
-  diagonal[0] += largest > 0 ? largest : 1.0;
+  if (arc_weights.size() == n) diagonal += arc_weights;
+  if (!(arc_weights.size() == n && arc_weights.maxCoeff() > 0)) diagonal[0] += largest > 0 ? largest : 1.0;
   SparseMatrix hessian(n, n);
   hessian.resizeNonZeros(static_cast<Eigen::Index>(entries.size()) + n);  // at most; repeats merge below
   int* outer = hessian.outerIndexPtr();
@@ -245,6 +249,63 @@ Result<typename G::Point> solve_in_order(const G& geometry, const D& density, st
                                          std::optional<Eigen::VectorXd> initial_weights,
                                          std::span<const Eigen::Index> original, Clock::time_point start);
 
+/// A start for partial transport from `weights`, whose uncut Laguerre cells are `diagram`: with
+/// `common_shift`, first weights + K, K the shift (which leaves the Laguerre diagram as it is) at
+/// which the cut cells together carry the target mass (Illinois' regula falsi, to 0.1 %); then
+/// every weight raised, where needed, until its ball reaches a tenth of the way across its cell's
+/// cost range, so that no cut cell is empty or nearly so. Raising a weight shrinks the neighbours'
+/// Laguerre cells, so the caller checks the result; with `common_floor` the raise is one common
+/// shift instead, which keeps the diagram and so cannot empty a cell.
+template <PartialGeometry G>
+Eigen::VectorXd partial_start(const G& geometry, std::span<const typename G::Point> sites,
+                              const Eigen::VectorXd& weights, const Diagram<typename G::Point>& diagram,
+                              const Eigen::VectorXd& targets, bool common_shift, bool common_floor = false) {
+  const auto n = static_cast<Eigen::Index>(sites.size());
+  double lowest = INFINITY, highest = -INFINITY;
+  Eigen::VectorXd reach = Eigen::VectorXd::Constant(n, -INFINITY);  // the least weight that reaches in
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const auto& cell = diagram.cells[static_cast<std::size_t>(i)];
+    if (cell.empty()) continue;
+    const auto [nearest, farthest] = geometry.cost_range(cell, sites[static_cast<std::size_t>(i)]);
+    lowest = std::min(lowest, nearest - weights[i]), highest = std::max(highest, farthest - weights[i]);
+    reach[i] = nearest + 0.1 * (farthest - nearest);
+  }
+  double shift = 0;
+  Eigen::VectorXd masses(n);
+  auto excess = [&](double k) {  // the cut cells' total mass minus the targets'
+#pragma omp parallel for schedule(dynamic, 256)
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const auto& site = sites[static_cast<std::size_t>(i)];
+      const auto cut = geometry.cut_by_ball(diagram.cells[static_cast<std::size_t>(i)], site, weights[i] + k);
+      masses[i] = cut.empty() ? 0.0 : geometry.integrate(cut, site, false).mass;
+    }
+    return masses.sum() - targets.sum();
+  };
+  if (common_shift && lowest < highest) {
+    double a = lowest, fa = -targets.sum(), b = highest, fb = excess(highest);
+    shift = b;
+    for (int iteration = 0; iteration < 100 && fb != fa; ++iteration) {
+      shift = (a * fb - b * fa) / (fb - fa);
+      const double fc = excess(shift);
+      if (std::abs(fc) <= 1e-3 * targets.sum()) break;
+      if ((fc > 0) != (fb > 0)) {
+        a = b, fa = fb;
+      } else {
+        fa /= 2;
+      }
+      b = shift, fb = fc;
+    }
+  }
+  if (common_floor) return weights.array() + std::max(shift, (reach - weights).maxCoeff());
+  // Raise only the cells that would start empty.
+  excess(shift);
+  Eigen::VectorXd result = weights.array() + shift;
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (!(masses[i] > 0)) result[i] = std::max(result[i], reach[i]);
+
+  return result;
+}
+
 inline void validate_targets(const Eigen::VectorXd& targets, std::size_t site_count) {
   if (static_cast<std::size_t>(targets.size()) != site_count)
     throw InputError("masses", "there are " + std::to_string(targets.size()) + " masses for " +
@@ -261,8 +322,11 @@ template <sdot::Geometry G, sdot::Density<G> D>
 sdot::Evaluation<typename G::Point> sdot::evaluate(const G& geometry, const D& density,
                                                    std::span<const typename G::Point> sites,
                                                    const Eigen::VectorXd& weights, bool with_hessian, Timings* timings,
-                                                   bool with_cost, bool stop_at_empty_cell) {
+                                                   bool with_cost, bool stop_at_empty_cell, bool partial) {
   using Point = typename G::Point;
+  if constexpr (!PartialGeometry<G>)
+    if (partial)
+      throw InputError("partial", std::string("the ") + std::string(G::name()) + " geometry has no ball cuts");
   auto start = detail::Clock::now();
   Evaluation<Point> result;
   result.diagram = detail::build_diagram(geometry, sites, weights, stop_at_empty_cell);
@@ -281,10 +345,13 @@ sdot::Evaluation<typename G::Point> sdot::evaluate(const G& geometry, const D& d
   const std::ptrdiff_t block_count = (n + block_size - 1) / block_size;
   std::vector<std::vector<Eigen::Triplet<double>>> block_weights(with_hessian ? static_cast<std::size_t>(block_count)
                                                                               : 0);
+  if (partial && with_hessian) result.arc_weights = Eigen::VectorXd::Zero(n);
 #pragma omp parallel for schedule(dynamic, 1)
   for (std::ptrdiff_t block = 0; block < block_count; ++block)
     for (std::ptrdiff_t i = block * block_size; i < std::min(n, (block + 1) * block_size); ++i) try {
-        const auto& cell = result.diagram.cells[i];
+        auto& cell = result.diagram.cells[i];
+        if constexpr (PartialGeometry<G>)
+          if (partial) cell = geometry.cut_by_ball(cell, sites[i], weights[i]);
         if (cell.empty()) {
           result.integrals[i] = CellIntegrals<Point>{};
           result.masses[i] = 0;
@@ -293,6 +360,8 @@ sdot::Evaluation<typename G::Point> sdot::evaluate(const G& geometry, const D& d
         result.integrals[i] = density.integrate_cell(geometry, cell, sites[i], with_cost);
         result.masses[i] = result.integrals[i].mass;
         if (!with_hessian) continue;
+        if constexpr (PartialGeometry<G>)
+          if (partial) result.arc_weights[i] = geometry.arc_weight(cell, sites[i]);
         auto& local = block_weights[static_cast<std::size_t>(block)];
         for (std::size_t k = 0; k < cell.size(); ++k) {
           const int j = cell.neighbors[k];
@@ -331,25 +400,79 @@ sdot::Result<typename G::Point> sdot::detail::solve_in_order(
   Summary& summary = result.summary;
   Eigen::VectorXd weights;
   const bool user_weights = initial_weights.has_value();
+  const bool partial = options.partial;
   if (user_weights) {
     weights = std::move(*initial_weights);
+  } else if (partial) {
+    weights = Eigen::VectorXd::Zero(n);  // see the start of partial transport below
   } else {
     weights = geometry.default_weights(sites);
   }
-  weights.array() -= weights.mean();
+  // Partial transport has no free constant: the weights set the balls' radii.
+  if (!partial) weights.array() -= weights.mean();
 
-  Evaluation<Point> current = evaluate(geometry, density, sites, weights, true, &summary.timings, false);
-  summary.source_mass = current.masses.sum();
+  Evaluation<Point> current =
+      evaluate(geometry, density, sites, weights, true, &summary.timings, false, false, partial && user_weights);
+  if (partial && !user_weights &&
+      std::any_of(current.diagram.cells.begin(), current.diagram.cells.end(),
+                  [](const auto& cell) { return cell.empty(); })) {
+    weights = geometry.default_weights(sites);  // the Voronoi diagram has empty cells
+    current = evaluate(geometry, density, sites, weights, true, &summary.timings, false);
+  }
+  if (partial && user_weights) {
+    summary.source_mass = evaluate(geometry, density, sites, weights, false, nullptr, false).masses.sum();
+  } else {
+    summary.source_mass = current.masses.sum();
+  }
   if (!(summary.source_mass > 0))
     throw InputError("density", "has no mass on the source domain (it vanishes wherever the domain is)");
   Eigen::VectorXd targets = target_masses;
   const double target_sum = targets.sum();
-  summary.mass_scale = summary.source_mass / target_sum;
-  if (!options.rescale_masses && std::abs(summary.mass_scale - 1) > options.mass_sum_tolerance)
-    throw InputError("masses", "they sum to " + detail::format_number(target_sum) + " but the source mass is " +
-                                   detail::format_number(summary.source_mass) +
-                                   " (enable options.rescale_masses to rescale them)");
-  targets *= summary.mass_scale;
+  if (partial) {
+    if (!(target_sum < summary.source_mass))
+      throw InputError("masses", "partial transport needs masses that sum to less than the source mass; they sum to " +
+                                     detail::format_number(target_sum) + ", the source mass is " +
+                                     detail::format_number(summary.source_mass));
+    if constexpr (PartialGeometry<G>)
+      if (!user_weights) {
+        // First choice: each ball with the area of its target mass (right for sparse sites); where
+        // that leaves a cell empty, a common shift of the default weights, which cannot.
+        Eigen::VectorXd discs = targets.unaryExpr([&](double mass) { return double(geometry.ball_weight(mass)); });
+        Evaluation<Point> trial;
+        if (discs.allFinite())
+          trial = evaluate(geometry, density, sites, discs, true, &summary.timings, false, true, true);
+        if (discs.allFinite() && trial.masses.minCoeff() > 0) {
+          weights = std::move(discs);
+          current = std::move(trial);
+        } else {
+          const Eigen::VectorXd default_weights = weights;
+          weights = partial_start(geometry, sites, default_weights, current.diagram, targets, true);
+          for (int round = 0;; ++round) {
+            auto trial_start = evaluate(geometry, density, sites, weights, true, &summary.timings, false, false, true);
+            if (trial_start.masses.minCoeff() > 0) {
+              current = std::move(trial_start);
+              break;
+            }
+            const auto uncut = evaluate(geometry, density, sites, weights, false, &summary.timings, false);
+
+            if (round == 4 || !std::none_of(uncut.diagram.cells.begin(), uncut.diagram.cells.end(),
+                                            [](const auto& cell) { return cell.empty(); })) {
+              weights = partial_start(geometry, sites, default_weights, current.diagram, targets, true, true);
+              current = evaluate(geometry, density, sites, weights, true, &summary.timings, false, false, true);
+              break;
+            }
+            weights = partial_start(geometry, sites, weights, uncut.diagram, targets, false);
+          }
+        }
+      }
+  } else {
+    summary.mass_scale = summary.source_mass / target_sum;
+    if (!options.rescale_masses && std::abs(summary.mass_scale - 1) > options.mass_sum_tolerance)
+      throw InputError("masses", "they sum to " + detail::format_number(target_sum) + " but the source mass is " +
+                                     detail::format_number(summary.source_mass) +
+                                     " (enable options.rescale_masses to rescale them)");
+    targets *= summary.mass_scale;
+  }
 
   Eigen::Index first_empty = -1;  // the empty cell of the lowest caller's index
   for (Eigen::Index i = 0; i < n; ++i)
@@ -384,6 +507,8 @@ sdot::Result<typename G::Point> sdot::detail::solve_in_order(
     for (Eigen::Index i = 0; i < n; ++i)
       result.centroids[i] = current.masses[i] > 0 ? Point(geometry.centroid(current.integrals[i])) : sites[i];
     result.diagram = std::move(current.diagram);
+    if constexpr (PartialGeometry<G>)
+      if (partial) result.ball_radii = weights.unaryExpr([&](double w) { return double(geometry.ball_radius(w)); });
     summary.timings.total_s = detail::seconds_since(start);
     return result;
   };
@@ -430,11 +555,12 @@ sdot::Result<typename G::Point> sdot::detail::solve_in_order(
                                              site_name(error.worst)};
       ++iteration;
       auto linear_start = detail::Clock::now();
-      const SparseMatrix hessian = detail::assemble_hessian(n, current.facet_weights);
+      const SparseMatrix hessian = detail::assemble_hessian(n, current.facet_weights, current.arc_weights);
       Eigen::VectorXd rhs = targets - current.masses;
       // Σ rhs = Σν − Σμ is zero up to summation round-off (~1e-13 for 10⁴ cells); spread it evenly
-      // (putting it on the pinned site would cap that site's accuracy at ~1e-9).
-      rhs.array() -= rhs.mean();
+      // (putting it on the pinned site would cap that site's accuracy at ~1e-9). Not so for partial
+      // transport, whose total mass moves with the weights.
+      if (!partial) rhs.array() -= rhs.mean();
       Eigen::VectorXd direction;
       const bool solved =
           linear.solve(hessian, rhs, direction, targets, detail::newton_accuracy(error.max_relative, tolerance));
@@ -448,9 +574,10 @@ sdot::Result<typename G::Point> sdot::detail::solve_in_order(
       double step = 1;
       for (int halving = 0; halving <= options.max_step_halvings; ++halving, step /= 2) {
         Eigen::VectorXd trial_weights = weights + step * direction;
-        trial_weights.array() -= trial_weights.mean();
+        if (!partial) trial_weights.array() -= trial_weights.mean();
         // A step that empties a cell is rejected (ε₀ > 0): the builder may stop at the first one.
-        Evaluation<Point> trial = evaluate(geometry, source, sites, trial_weights, true, &summary.timings, false, true);
+        Evaluation<Point> trial =
+            evaluate(geometry, source, sites, trial_weights, true, &summary.timings, false, true, partial);
         if (trial.masses.minCoeff() < epsilon0) continue;
         const auto trial_error = detail::mass_error(trial.masses, targets);
         if (trial_error.l2 <= (1 - step / 2) * error.l2) {
@@ -536,6 +663,12 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
   geometry.validate_sites(sites);
   detail::validate_targets(target_masses, sites.size());
   const auto n = static_cast<Eigen::Index>(sites.size());
+  if (options.partial) {
+    if constexpr (!PartialGeometry<G>)
+      throw InputError("partial", "the " + std::string(G::name()) + " geometry has no partial transport (ball cuts)");
+    if constexpr (!std::is_same_v<D, UniformDensity>)
+      throw InputError("density", "partial transport is implemented for the uniform density only");
+  }
   if (initial_weights) {
     if (initial_weights->size() != n)
       throw InputError("weights", "there are " + std::to_string(initial_weights->size()) + " weights for " +
@@ -574,6 +707,10 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
     result.masses[i] = local.masses[k];
     result.target_masses[i] = local.target_masses[k];
     result.centroids[static_cast<std::size_t>(i)] = local.centroids[static_cast<std::size_t>(k)];
+    if (local.ball_radii.size() == n) {
+      if (result.ball_radii.size() != n) result.ball_radii.resize(n);
+      result.ball_radii[i] = local.ball_radii[k];
+    }
     auto& cell = result.diagram.cells[static_cast<std::size_t>(i)];
     cell = std::move(local.diagram.cells[static_cast<std::size_t>(k)]);
     for (int& label : cell.neighbors)

@@ -4,9 +4,12 @@
 /// (power cells), clipped to a convex polygon source domain (default: the unit square).
 
 #include <Eigen/Core>
+#include <cmath>
 #include <cstdint>
+#include <numbers>
 #include <span>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "sdot/chart_diagram.hpp"
@@ -54,8 +57,9 @@ class Plane {
   [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights,
                                              bool stop_at_empty_cell) const;
 
-  /// Exact area, first moment and ∫|x − y|²/2 of a polygon. The cost comes with the second
-  /// moment at no extra cost, so it is computed whatever `with_cost`.
+  /// Exact area, first moment and ∫|x − y|²/2 of a polygon, or of a polygon cut by the site's ball
+  /// (edges labelled ball_arc_label are arcs around `site`). The cost comes with the second moment
+  /// at no extra cost, so it is computed whatever `with_cost`.
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site, bool with_cost = true) const;
   /// ∫ρ, ∫xρ and (with `with_cost`) ∫|x − y|²/2 ρ over the cell, by triangle_rule(order) on the
   /// triangles of a fan from its first vertex.
@@ -72,6 +76,18 @@ class Plane {
   [[nodiscard]] Point centroid(const CellIntegrals<Point>& integrals) const {
     return integrals.first_moment / integrals.mass;
   }
+
+  /// Partial transport (sdot/partial.hpp): the part of `cell` within the ball
+  /// {x : |x − site|²/2 ≤ weight} of radius √(2·weight), its arcs labelled ball_arc_label.
+  [[nodiscard]] Cell<Point> cut_by_ball(const Cell<Point>& cell, const Point& site, double weight) const;
+  /// Σ over the cell's ball arcs of ∫ ds / |x − site| = the arcs' angles.
+  [[nodiscard]] double arc_weight(const Cell<Point>& cell, const Point& site) const;
+  /// √(2·weight) (0 for weight ≤ 0).
+  [[nodiscard]] static double ball_radius(double weight) { return weight > 0 ? std::sqrt(2 * weight) : 0; }
+  /// area / 2π: the weight whose ball has this area.
+  [[nodiscard]] static double ball_weight(double area) { return area / (2 * std::numbers::pi); }
+  /// Min and max of |x − site|²/2 over a non-empty polygon cell.
+  [[nodiscard]] std::pair<double, double> cost_range(const Cell<Point>& cell, const Point& site) const;
 
   /// The projective chart (see ProjectiveGeometry): ((x − o)/s, 1) with o the domain's centroid
   /// and s its radius, so coordinates are O(1) whatever the domain's position and size. Linear

@@ -19,15 +19,19 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
 #include <cstdint>
 #include <memory>
+#include <numbers>
 #include <span>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "sdot/chart_diagram.hpp"
 #include "sdot/density.hpp"
 #include "sdot/diagram.hpp"
+#include "sdot/partial.hpp"
 
 namespace sdot {
 
@@ -129,7 +133,22 @@ class Sphere {
   [[nodiscard]] static Point from_projective(const Eigen::Vector3d& x) { return x.normalized(); }
 
   /// True when edge `label` of a cell is an arc of the cap's boundary circle (not a great arc).
-  [[nodiscard]] bool is_circle_arc(int label) const { return domain_ == Domain::cap && is_boundary(label); }
+  [[nodiscard]] bool is_circle_arc(int label) const { return domain_ == Domain::cap && is_domain_boundary(label); }
+
+  /// Partial transport (sdot/partial.hpp): the part of `cell` within the ball
+  /// {x : −ln⟨x, site⟩ ≤ weight}, the cap of angular radius arccos e^{−weight} around the site; its
+  /// arcs are labelled ball_arc_label.
+  [[nodiscard]] Cell<Point> cut_by_ball(const Cell<Point>& cell, const Point& site, double weight) const;
+  /// Σ over the cell's ball arcs of ∫ ds / |∇c| = cos α · (the arc's angle), α the ball's radius.
+  [[nodiscard]] double arc_weight(const Cell<Point>& cell, const Point& site) const;
+  /// arccos e^{−weight} (0 for weight ≤ 0).
+  [[nodiscard]] static double ball_radius(double weight);
+  /// −ln(1 − area/2π): the weight whose ball (a cap of area 2π(1 − cos α)) has this area, +∞ from 2π.
+  [[nodiscard]] static double ball_weight(double area) {
+    return area < 2 * std::numbers::pi ? -std::log1p(-area / (2 * std::numbers::pi)) : INFINITY;
+  }
+  /// Min and max of −ln⟨x, site⟩ over a non-empty cell (+∞ when the cell reaches ⟨x, site⟩ ≤ 0).
+  [[nodiscard]] std::pair<double, double> cost_range(const Cell<Point>& cell, const Point& site) const;
 
   /// Points along edge k of a cell (great or small circle), `count` ≥ 2 of them, ends included.
   [[nodiscard]] std::vector<Point> edge_points(const Cell<Point>& cell, std::size_t k, int count) const;
