@@ -8,6 +8,7 @@
 #include <random>
 
 #include "sdot/error.hpp"
+#include "sdot/partial.hpp"
 #include "sdot/quadrature.hpp"
 
 namespace sdot {
@@ -77,6 +78,30 @@ double cost_integral(const Point& a, const Point& b, const Point& c, const Point
   triangle_quadrature(a, b, c, cost_order(size),
                       [&](const Point& x, double da) { sum += da * Hyperbolic::cost(x, y); });
   return sum;
+}
+
+/// The tangent part at y of x: x + ⟨x, y⟩_M y (Minkowski-orthogonal to y).
+Point tangent_at(const Point& y, const Point& x) {
+  return x + mink(x, y) * y;
+}
+
+/// The angle in [0, 2π) swept counter-clockwise (in the Klein chart) around y from a to b: in the
+/// tangent plane at y, whose orientation det(y, u, v) every proper Lorentz map keeps.
+double angle_around(const Point& y, const Point& a, const Point& b) {
+  const Point u = tangent_at(y, a), v = tangent_at(y, b);
+  const double angle = std::atan2(y.dot(u.cross(v)), mink(u, v));
+  return angle < 0 ? angle + 2 * std::numbers::pi : angle;
+}
+
+/// a turned by `angle` counter-clockwise around y: cosh r y + cos θ u + sin θ (y ⊠ u), u the tangent
+/// part of a and y ⊠ u = J(y × u) the Lorentzian cross product (a quarter turn in the tangent plane).
+Point rotate_around(const Point& y, const Point& a, double angle) {
+  const Point u = tangent_at(y, a);
+  Point turned = y.cross(u);
+  turned.z() = -turned.z();
+  Point x = -mink(a, y) * y + std::cos(angle) * u + std::sin(angle) * turned;
+  x.z() = std::sqrt(1 + x.head<2>().squaredNorm());
+  return x;
 }
 
 /// The normalised sum of a cell's vertices: a point inside the (convex) cell.
@@ -324,6 +349,14 @@ Diagram<Hyperbolic::Point> Hyperbolic::build_diagram(std::span<const Point> site
   return diagram;
 }
 
+namespace {
+/// The hyperbolic area of the triangle (o, a, b), signed: tan(Δ/2) = det(o, a, b) / (1 − ⟨o,a⟩ − ⟨a,b⟩ − ⟨b,o⟩).
+double triangle_area(const Point& o, const Point& a, const Point& b) {
+  const Point oa = a - o, ob = b - o;
+  return 2 * std::atan2(o.dot(oa.cross(ob)), 1 - mink(o, a) - mink(a, b) - mink(b, o));
+}
+}  // namespace
+
 CellIntegrals<Hyperbolic::Point> Hyperbolic::integrate(const Cell<Point>& cell, const Point& site,
                                                        bool with_cost) const {
   CellIntegrals<Point> result;
@@ -332,10 +365,21 @@ CellIntegrals<Hyperbolic::Point> Hyperbolic::integrate(const Cell<Point>& cell, 
   for (std::size_t k = 0; k < n; ++k) {
     const Point& a = cell.vertices[k];
     const Point& b = cell.vertices[(k + 1) % n];
-    // Area of the triangle (o, a, b): tan(Δ/2) = det(o, a, b) / (1 − ⟨o,a⟩ − ⟨a,b⟩ − ⟨b,o⟩).
-    const Point oa = a - o, ob = b - o;
-    const double det = o.dot(oa.cross(ob));
-    result.mass += 2 * std::atan2(det, 1 - mink(o, a) - mink(a, b) - mink(b, o));
+    result.mass += triangle_area(o, a, b);
+    if (with_cost) result.cost += cost_integral(o, a, b, site);
+    if (is_ball_arc(cell.neighbors[k])) {
+      // The segment between the ball's arc and the chord ab: sector minus the triangle (y, a, b).
+      // Sector: area φ(cosh r − 1), cost φ ∫₀ʳ ln cosh s sinh s ds = φ(C ln C − C + 1), C = cosh r.
+      // First moment ½ ∫ n_out ds with n_out = sinh r y + cosh r u(θ), ds = sinh r dθ, and
+      // ∫ u dθ = tan(φ/2)(u₀ + u₁) over an arc of angle φ (u the unit radial tangents).
+      const double phi = angle_around(site, a, b);
+      const Point ua = tangent_at(site, a);
+      const double cosh_r = -mink(a, site), sinh_r2 = mink(ua, ua);
+      result.mass += phi * sinh_r2 / (cosh_r + 1) - triangle_area(site, a, b);
+      if (with_cost) result.cost += phi * (cosh_r * std::log(cosh_r) - cosh_r + 1) - cost_integral(site, a, b, site);
+      result.first_moment += 0.5 * (phi * sinh_r2 * site + cosh_r * std::tan(phi / 2) * (ua + tangent_at(site, b)));
+      continue;
+    }
     // First moment: ½ L m_out with m_out = −J(a × b) / sinh L.
     const double l = length(a, b);
     if (l > 0) {
@@ -343,7 +387,6 @@ CellIntegrals<Hyperbolic::Point> Hyperbolic::integrate(const Cell<Point>& cell, 
       n_ab.z() = -n_ab.z();
       result.first_moment -= (0.5 * l / std::sinh(l)) * n_ab;
     }
-    if (with_cost) result.cost += cost_integral(o, a, b, site);
   }
   return result;
 }
@@ -391,6 +434,77 @@ double Hyperbolic::facet_weight(const Point& a, const Point& b, const Point& sit
     integral += node.weight * rho(boost_ * x) * -mink(x, yi);
   }
   return integral * l / scaled_normal_norm(yi, weight_i, inverse_boost_ * site_j, weight_j);
+}
+
+// ---- partial transport ------------------------------------------------------------------
+
+Cell<Hyperbolic::Point> Hyperbolic::cut_by_ball(const Cell<Point>& cell, const Point& site, double weight) const {
+  if (cell.empty() || !(weight > 0)) return {};
+  struct Ball {
+    Point y;
+    double cosh_radius;
+    detail::EdgeInBall<Point> clip(const Point& a, const Point& b, int) const {
+      // On the geodesic x(s) = cosh s a + sinh s t, s ∈ [0, L]: −⟨x, y⟩_M = A cosh s + B sinh s
+      // = R cosh(s + s₀) with R² = A² − B², tanh s₀ = B/A; inside for |s + s₀| ≤ arccosh(e^w / R).
+      const double l = length(a, b);
+      if (!(l > 0)) return {};
+      const Point t = (b + mink(a, b) * a) / std::sinh(l);  // (b − cosh L a) / sinh L
+      const double along = -mink(a, y), across = -mink(t, y);
+      const double r = std::sqrt((along - across) * (along + across));
+      if (!(cosh_radius > r)) return {};
+      return detail::edge_interval(-std::atanh(across / along), std::acosh(cosh_radius / r), l, a, b, [&](double s) {
+        Point x = std::cosh(s) * a + std::sinh(s) * t;
+        x.z() = std::sqrt(1 + x.head<2>().squaredNorm());
+        return x;
+      });
+    }
+    double angle(const Point& a, const Point& b) const { return angle_around(y, a, b); }
+    Point rotate(const Point& a, double angle) const { return rotate_around(y, a, angle); }
+    Point boundary_point() const {
+      const Point u = tangent_at(y, Point::UnitX());
+      const double sinh_r = std::sqrt((cosh_radius - 1) * (cosh_radius + 1));
+      Point x = cosh_radius * y + (sinh_r / std::sqrt(mink(u, u))) * u;
+      x.z() = std::sqrt(1 + x.head<2>().squaredNorm());
+      return x;
+    }
+    bool contains_site(const Cell<Point>& polygon) const {
+      for (std::size_t k = 0; k < polygon.size(); ++k)
+        if (polygon.vertices[k].cross(polygon.vertices[(k + 1) % polygon.size()]).dot(y) < 0) return false;
+      return true;
+    }
+  };
+  return detail::cut_cell_by_ball(cell, Ball{site, std::exp(weight)});
+}
+
+double Hyperbolic::arc_weight(const Cell<Point>& cell, const Point& site) const {
+  // |∇c| = tanh r on the circle and ds = sinh r dθ: each arc gives cosh r · θ.
+  double weight = 0;
+  for (std::size_t k = 0; k < cell.size(); ++k)
+    if (is_ball_arc(cell.neighbors[k])) {
+      const Point& a = cell.vertices[k];
+      weight += -mink(a, site) * angle_around(site, a, cell.vertices[(k + 1) % cell.size()]);
+    }
+  return weight;
+}
+
+std::pair<double, double> Hyperbolic::cost_range(const Cell<Point>& cell, const Point& site) const {
+  double nearest = INFINITY, farthest = 1;  // of −⟨x, y⟩_M = cosh d
+  bool inside = true;
+  const std::size_t n = cell.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    const Point& a = cell.vertices[k];
+    const Point& b = cell.vertices[(k + 1) % n];
+    if (a.cross(b).dot(site) < 0) inside = false;
+    nearest = std::min(nearest, -mink(a, site));
+    farthest = std::max(farthest, -mink(a, site));
+    const double l = length(a, b);
+    if (!(l > 0)) continue;
+    const Point t = (b + mink(a, b) * a) / std::sinh(l);
+    const double along = -mink(a, site), across = -mink(t, site);
+    const double s = -std::atanh(across / along);  // where the distance to the site is least
+    if (s > 0 && s < l) nearest = std::min(nearest, std::sqrt((along - across) * (along + across)));
+  }
+  return {inside ? 0.0 : std::log(nearest), std::log(farthest)};
 }
 
 Hyperbolic::Point Hyperbolic::centroid(const CellIntegrals<Point>& integrals) const {

@@ -6,6 +6,7 @@
 #include <random>
 
 #include "conformance/conformance.hpp"
+#include "conformance/partial_conformance.hpp"
 #include "sdot/geometries/hyperbolic.hpp"
 #include "sdot/quadrature.hpp"
 #include "sdot/solver.hpp"
@@ -71,6 +72,26 @@ struct ConformanceTraits<Hyperbolic> {
 };
 
 INSTANTIATE_TYPED_TEST_SUITE_P(Hyperbolic, GeometryConformance, ::testing::Types<Hyperbolic>);
+
+template <>
+struct PartialTraits<Hyperbolic> {
+  static double disc_area(double radius) { return 2 * std::numbers::pi * (std::cosh(radius) - 1); }
+  static std::vector<Point> separate_sites() {
+    return {Hyperbolic::from_klein({0.0, 0.0}), Hyperbolic::from_klein({0.3, 0.1}),
+            Hyperbolic::from_klein({-0.2, 0.25})};
+  }
+  /// The point at fraction t of the arc from a to b around the site, by a Lorentz rotation: boost
+  /// the site to the origin, turn about the x₃ axis, boost back.
+  static Point arc_point(const Point& site, const Point& a, const Point& b, double t) {
+    const Eigen::Matrix3d to_site = Hyperbolic::boost_to(site), from_site = Hyperbolic::lorentz_inverse(to_site);
+    const Point la = from_site * a, lb = from_site * b;
+    double angle = std::atan2(la.x() * lb.y() - la.y() * lb.x(), la.x() * lb.x() + la.y() * lb.y());
+    if (angle < 0) angle += 2 * std::numbers::pi;
+    const double c = std::cos(t * angle), s = std::sin(t * angle);
+    return to_site * Point(c * la.x() - s * la.y(), s * la.x() + c * la.y(), la.z());
+  }
+};
+INSTANTIATE_TYPED_TEST_SUITE_P(Hyperbolic, PartialConformance, ::testing::Types<Hyperbolic>);
 
 namespace {
 

@@ -19,14 +19,17 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <numbers>
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "sdot/chart_diagram.hpp"
 #include "sdot/density.hpp"
 #include "sdot/diagram.hpp"
+#include "sdot/partial.hpp"
 
 namespace sdot {
 
@@ -144,6 +147,19 @@ class Hyperbolic {
                                     int order) const;
   /// M / √(−⟨M, M⟩_M).
   [[nodiscard]] Point centroid(const CellIntegrals<Point>& integrals) const;
+
+  /// Partial transport (sdot/partial.hpp): the part of `cell` within the ball
+  /// {x : ln(−⟨x, site⟩_M) ≤ weight}, the disc of radius arccosh e^{weight} around the site; its arcs
+  /// are labelled ball_arc_label. integrate(cell, site) handles them exactly.
+  [[nodiscard]] Cell<Point> cut_by_ball(const Cell<Point>& cell, const Point& site, double weight) const;
+  /// Σ over the cell's ball arcs of ∫ ds / |∇c| = cosh r · (the arc's angle), r the ball's radius.
+  [[nodiscard]] double arc_weight(const Cell<Point>& cell, const Point& site) const;
+  /// arccosh e^{weight} (0 for weight ≤ 0).
+  [[nodiscard]] static double ball_radius(double weight) { return weight > 0 ? std::acosh(std::exp(weight)) : 0; }
+  /// ln(1 + area/2π): the weight whose ball (a disc of area 2π(cosh r − 1)) has this area.
+  [[nodiscard]] static double ball_weight(double area) { return std::log1p(area / (2 * std::numbers::pi)); }
+  /// Min and max of ln(−⟨x, site⟩_M) over a non-empty cell.
+  [[nodiscard]] std::pair<double, double> cost_range(const Cell<Point>& cell, const Point& site) const;
 
   /// The projective chart (see ProjectiveGeometry): the re-centred Klein chart in homogeneous
   /// coordinates, B⁻¹x / x₃ (B the boost). Geodesics are planes through the origin; a "linear"
