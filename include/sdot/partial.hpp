@@ -48,7 +48,9 @@ constexpr bool is_domain_boundary(int label) {
 ///   diagonal term of the arcs, for ρ ≡ 1);
 /// - `ball_radius(weight)`: the (geodesic) radius c⁻¹(weight) of a ball, 0 for weight ≤ 0;
 /// - `ball_weight(area)`: the weight whose ball has this area (for the start);
-/// - `cost_range(cell, site)`: min and max of c(x, site) over a non-empty cell (for the start).
+/// - `cost_range(cell, site)`: min and max of c(x, site) over a non-empty cell (for the start);
+/// - `with_sampled_arcs(cell, site, pieces)`: the cell with each ball arc replaced by `pieces`
+///   straight (geodesic) edges through points of the arc, still labelled ball_arc_label (pictures).
 template <class G>
 concept PartialGeometry = Geometry<G> &&
     requires(const G& geometry, const Cell<typename G::Point>& cell, const typename G::Point& point, double weight) {
@@ -128,6 +130,23 @@ Cell<Point> cut_cell_by_ball(const Cell<Point>& cell, const Ball& ball) {
   }
   if (split.size() < 3) return {};
   return split;
+}
+
+/// `cell` with each ball arc from p to q replaced by `pieces` edges through rotate(p, angle(p, q)·m/pieces).
+template <class Point, class Angle, class Rotate>
+Cell<Point> sample_ball_arcs(const Cell<Point>& cell, int pieces, const Angle& angle, const Rotate& rotate) {
+  Cell<Point> sampled;
+  for (std::size_t k = 0; k < cell.size(); ++k) {
+    sampled.vertices.push_back(cell.vertices[k]);
+    sampled.neighbors.push_back(cell.neighbors[k]);
+    if (!is_ball_arc(cell.neighbors[k])) continue;
+    const double sweep = angle(cell.vertices[k], cell.vertices[(k + 1) % cell.size()]);
+    for (int m = 1; m < pieces; ++m) {
+      sampled.vertices.push_back(rotate(cell.vertices[k], sweep * m / pieces));
+      sampled.neighbors.push_back(ball_arc_label);
+    }
+  }
+  return sampled;
 }
 
 /// The piece of [0, length] within distance `half_width` of `center` (in the edge's parameter),

@@ -11,10 +11,10 @@ Functions: `solve`, `sphere_parameterization`, `read_mesh`, `write_mesh`; pictur
 """
 
 from ._mesh import read_mesh, sphere_parameterization, write_mesh
-from ._solve import GEOMETRIES, SolveResult, solve
+from ._solve import BALL_ARC, GEOMETRIES, SolveResult, solve
 
 __version__ = "0.1.0"
-__all__ = ["solve", "SolveResult", "sphere_parameterization", "read_mesh", "write_mesh", "GEOMETRIES"]
+__all__ = ["solve", "SolveResult", "BALL_ARC", "sphere_parameterization", "read_mesh", "write_mesh", "GEOMETRIES"]
 
 
 def __getattr__(name):

@@ -9,6 +9,8 @@ from . import _sdot
 
 GEOMETRIES = ("plane", "sphere", "hyperbolic")
 LINEAR_SOLVERS = ("auto", "ldlt", "cg", "cholmod", "multigrid")
+#: The ``cell_neighbors`` label of an edge that is an arc of the site's ball (partial transport).
+BALL_ARC = -(2**31)
 
 
 def _float_array(value, name, ndim=None, columns=None):
@@ -128,7 +130,10 @@ class SolveResult:
     (dict of seconds), ``history`` (one dict per Newton iteration), ``geometry``, ``sites``.
     The cells are ``cells`` (a list of (k, d) vertex arrays, counter-clockwise) and, in one block,
     ``cell_vertices`` with ``cell_offsets`` (cell i is rows offsets[i]:offsets[i+1]) and
-    ``cell_neighbors`` (the site across each edge; negative on the domain's boundary).
+    ``cell_neighbors`` (the site across each edge; negative on the domain's boundary, and
+    ``BALL_ARC`` for an arc of the site's ball in a partial-transport solve, from that vertex to
+    the next counter-clockwise around the site). With ``partial=True``, ``ball_radii`` holds each
+    ball's (geodesic) radius.
     On H², points are in the hyperboloid (x, y, z), and ``centroids_poincare``,
     ``cells_poincare`` and ``cell_vertices_poincare`` give them in the Poincaré disk.
     """
@@ -217,6 +222,7 @@ def solve(
     weights=None,
     linear_solver="auto",
     rescale_masses=None,
+    partial=False,
     progress=False,
     callback=None,
     model="poincare",
@@ -249,6 +255,11 @@ def solve(
     tolerance : stop when max_i |mass_i − masses_i| / masses_i ≤ tolerance.
     max_iterations : Newton iterations at most.
     weights : initial weights (n,); every cell must be non-empty with them.
+    partial : partial transport: each cell is its Laguerre cell cut by the site's ball
+        {x : c(x, y_i) ≤ w_i} (radius √(2 w_i) on the plane, arccos e^{−w_i} on the sphere,
+        arccosh e^{w_i} on H²), so the source keeps the mass farther from every site than its ball
+        reaches. `masses` are then required, not rescaled, and must sum to less than the source's
+        mass; uniform density only. The radii come back in ``result.ball_radii``.
     linear_solver : "auto", "ldlt", "cg", "cholmod" or "multigrid".
     progress : print one updating line per Newton iteration on stderr.
     callback : called after each iteration with a dict (iteration, max_relative_error,
@@ -276,6 +287,10 @@ def solve(
         masses = _float_array(masses, "masses", ndim=1)
         if len(masses) != n:
             raise ValueError(f"masses: there are {len(masses)} masses for {n} sites")
+    if partial and masses is None:
+        raise ValueError("masses: partial transport needs the masses (summing to less than the source's mass)")
+    if partial and density is not None:
+        raise ValueError("density: partial transport is implemented for the uniform density only")
     if weights is not None:
         weights = _float_array(weights, "weights", ndim=1)
         if len(weights) != n:
@@ -309,6 +324,7 @@ def solve(
             int(max_iterations),
             linear_solver,
             bool(rescale_masses) if rescale_masses is not None else False,
+            bool(partial),
             hook,
         )
     finally:

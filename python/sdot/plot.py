@@ -32,7 +32,9 @@ def _colors(result, color_by, cmap):
         if values.shape != (len(result.weights),):
             raise ValueError(f"color_by: needs one value per cell ({len(result.weights)}), got shape {values.shape}")
     low, high = np.nanmin(values), np.nanmax(values)
-    scaled = (values - low) / (high - low) if high > low else np.full_like(values, 0.5)
+    # Values equal up to rounding (converged masses) get one colour, not rounding noise stretched.
+    spread = high - low > 1e-9 * max(abs(high), abs(low))
+    scaled = (values - low) / (high - low) if spread else np.full_like(values, 0.5)
     return plt.get_cmap(cmap)(scaled)
 
 
@@ -45,6 +47,57 @@ def _geodesic_samples(a, b, count, geometry):
         return p / np.linalg.norm(p, axis=1, keepdims=True)
     # hyperboloid: x / sqrt(−<x, x>) (Minkowski), positive last coordinate
     return p / np.sqrt(p[:, 2] ** 2 - p[:, 0] ** 2 - p[:, 1] ** 2)[:, None]
+
+
+def _site_native(result, i):
+    """Site i in the cells' coordinates: the plane, the unit sphere, or the hyperboloid."""
+    y = np.asarray(result.sites[i], dtype=float)
+    if result.geometry == "plane":
+        return y
+    if result.geometry == "sphere":
+        return y / np.linalg.norm(y)
+    model = getattr(result, "model", "poincare")
+    if model == "hyperboloid":
+        return y
+    r2 = y @ y
+    if model == "klein":
+        return np.append(y, 1.0) / np.sqrt(1 - r2)
+    return np.append(2 * y, 1 + r2) / (1 - r2)
+
+
+def _arc_samples(site, a, b, count, geometry):
+    """`count` points on the arc of the ball around `site` from a to b, counter-clockwise
+    (partial transport): a turned about the site, in the plane, on the sphere or on the hyperboloid."""
+    t = np.linspace(0.0, 1.0, count)[:, None]
+    if geometry == "plane":
+        u, v = a - site, b - site
+        sweep = np.arctan2(u[0] * v[1] - u[1] * v[0], u @ v) % (2 * np.pi)
+        c, s = np.cos(t * sweep), np.sin(t * sweep)
+        return site + np.hstack((c * u[0] - s * u[1], s * u[0] + c * u[1]))
+    if geometry == "sphere":
+        along = a @ site
+        u = a - along * site
+        turned = np.cross(site, u)
+        sweep = np.arctan2(site @ np.cross(a, b), a @ b - along * (b @ site)) % (2 * np.pi)
+        return along * site + np.cos(t * sweep) * u + np.sin(t * sweep) * turned
+    j = np.array([1.0, 1.0, -1.0])
+    mink = lambda x, y: x @ (j * y)  # noqa: E731
+    u, v = a + mink(a, site) * site, b + mink(b, site) * site
+    turned = j * np.cross(site, u)
+    sweep = np.arctan2(site @ np.cross(u, v), mink(u, v)) % (2 * np.pi)
+    return -mink(a, site) * site + np.cos(t * sweep) * u + np.sin(t * sweep) * turned
+
+
+def _edge_samples(result, i, cell, k, count):
+    """Points along edge k of cell i: its ball arc (partial transport) or its geodesic."""
+    from ._solve import BALL_ARC
+
+    a, b = cell[k], cell[(k + 1) % len(cell)]
+    if result.cell_neighbors[result.cell_offsets[i] + k] == BALL_ARC:
+        return _arc_samples(_site_native(result, i), a, b, count, result.geometry)
+    if result.geometry == "plane":
+        return np.vstack((a, b))
+    return _geodesic_samples(a, b, count, result.geometry)
 
 
 def _mollweide_xy(longitude, latitude):
@@ -90,16 +143,13 @@ def _sphere_fill(curve):
 
 
 def _curved_cells(result, samples_per_edge):
-    """Each cell's boundary sampled along its geodesic edges (sphere and H²)."""
+    """Each cell's boundary sampled along its edges: geodesics, and the balls' arcs of partial transport."""
     curves = []
-    for cell in result.cells:
+    for i, cell in enumerate(result.cells):
         if len(cell) < 3:
             curves.append(None)
             continue
-        pieces = [
-            _geodesic_samples(cell[k], cell[(k + 1) % len(cell)], samples_per_edge, result.geometry)[:-1]
-            for k in range(len(cell))
-        ]
+        pieces = [_edge_samples(result, i, cell, k, samples_per_edge)[:-1] for k in range(len(cell))]
         curves.append(np.vstack(pieces))
     return curves
 
@@ -131,7 +181,8 @@ def cells(result, ax=None, color_by=None, cmap="viridis", sites=True, centroids=
 
     if result.geometry == "plane":
         keep = [i for i, c in enumerate(result.cells) if len(c) >= 3]
-        _add_cells(ax, [result.cells[i] for i in keep], keep, colors, edgecolor, linewidth)
+        _add_cells(ax, [c for c in _curved_cells(result, samples_per_edge) if c is not None], keep, colors, edgecolor,
+                   linewidth)
         site_xy, centroid_xy = result.sites, result.centroids
     elif result.geometry == "hyperbolic":
         disk = plt.Circle((0, 0), 1, fill=False, color="black", linewidth=1.0)

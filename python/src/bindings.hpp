@@ -322,6 +322,7 @@ py::dict pack_result(const Result<Point>& result, const std::vector<CoordinateVi
     out[("centroids" + view.suffix).c_str()] = points_array(centroids, view);
     out[("cell_vertices" + view.suffix).c_str()] = points_array(vertices, view);
   }
+  if (result.ball_radii.size() > 0) out["ball_radii"] = vector_array(result.ball_radii);
   out["cell_offsets"] = offsets;
   out["cell_neighbors"] = neighbors;
   return out;

@@ -33,7 +33,7 @@ const GeometryBindings& find_geometry(const std::string& name) {
 
 py::dict solve(const std::string& geometry, py::array_t<double> sites, py::object masses, py::object weights,
                py::object domain, py::object density, py::dict extra, double tolerance, int max_iterations,
-               const std::string& linear_solver, bool rescale_masses, py::object callback) {
+               const std::string& linear_solver, bool rescale_masses, bool partial, py::object callback) {
   const GeometryBindings& bindings = find_geometry(geometry);
   SolveRequest request{std::move(sites),
                        std::move(masses),
@@ -47,6 +47,7 @@ py::dict solve(const std::string& geometry, py::array_t<double> sites, py::objec
   options.max_iterations = max_iterations;
   options.linear_solver = sdot::linear_solver_from_name(linear_solver);
   options.rescale_masses = rescale_masses;
+  options.partial = partial;
   // After each Newton iteration, with the GIL: Ctrl-C (a pending KeyboardInterrupt) stops the
   // solve, and the callback sees the iteration. A borrowed handle: `callback` outlives the solve.
   const py::handle hook = callback;
@@ -212,7 +213,7 @@ PYBIND11_MODULE(_sdot, m) {
   m.def("geometries", [] { return registry().names(); });
   m.def("solve", &solve, py::arg("geometry"), py::arg("sites"), py::arg("masses"), py::arg("weights"),
         py::arg("domain"), py::arg("density"), py::arg("extra"), py::arg("tolerance"), py::arg("max_iterations"),
-        py::arg("linear_solver"), py::arg("rescale_masses"), py::arg("callback"));
+        py::arg("linear_solver"), py::arg("rescale_masses"), py::arg("partial"), py::arg("callback"));
   m.def("bench_problem", [](const std::string& geometry, std::size_t n, unsigned seed) {
     return find_geometry(geometry).bench_problem(n, seed);
   });

@@ -92,6 +92,10 @@ Options read_options(const json& problem, bool quiet) {
   if (problem.contains("max_iterations"))
     options.max_iterations = read_int(problem["max_iterations"], "max_iterations", "an integer");
   if (problem.contains("linear_solver")) options.linear_solver = read_linear_solver(problem["linear_solver"]);
+  if (problem.contains("partial")) {
+    if (!problem["partial"].is_boolean()) throw InputError("partial", "must be true or false");
+    options.partial = problem["partial"].get<bool>();
+  }
   try {
     options.validate();
   } catch (const InputError& e) {

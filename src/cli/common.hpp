@@ -157,6 +157,9 @@ json result_json(const std::string& geometry, const Result<Point>& result) {
   for (const auto& c : result.centroids) centroids.push_back(point_json(c));
   out["centroids"] = std::move(centroids);
   out["transport_cost"] = result.transport_cost;
+  if (result.ball_radii.size() > 0)
+    out["ball_radii"] =
+        std::vector<double>(result.ball_radii.data(), result.ball_radii.data() + result.ball_radii.size());
   out["adjacency"] = result.adjacency();
   out["timings"] = {{"diagram_s", s.timings.diagram_s},
                     {"assembly_s", s.timings.assembly_s},

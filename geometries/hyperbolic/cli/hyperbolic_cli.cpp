@@ -108,10 +108,11 @@ std::string draw(const Hyperbolic& geometry, std::span<const Point> sites, const
   body +=
       "<path d=\"" + geodesic_path(geometry.domain()) + "\" fill=\"#ececec\" stroke=\"black\" stroke-width=\"1.5\"/>\n";
   const double stroke = std::clamp(3.0 / std::sqrt(static_cast<double>(sites.size())), 0.2, 1.0);
-  for (const auto& cell : result.diagram.cells)
-    if (!cell.empty())
+  for (std::size_t i = 0; i < result.diagram.cells.size(); ++i)
+    if (!result.diagram.cells[i].empty())
       body += fmt::format("<path d=\"{}\" fill=\"none\" stroke=\"#3060a0\" stroke-width=\"{:.2f}\"/>\n",
-                          geodesic_path(cell.vertices), stroke);
+                          geodesic_path(geometry.with_sampled_arcs(result.diagram.cells[i], sites[i], 24).vertices),
+                          stroke);
   const double r = dot_radius_px(sites.size());
   auto dot = [&](const Point& x, double radius, const char* color) {
     const auto c = px(Hyperbolic::to_poincare(x));
@@ -136,7 +137,7 @@ std::string draw(const Hyperbolic& geometry, std::span<const Point> sites, const
 SolveOutput solve_hyperbolic(const json& problem, const RunContext& context) {
   check_known_fields(problem, "",
                      {"geometry", "sites", "sites_model", "masses", "domain", "density", "tolerance", "max_iterations",
-                      "weights", "linear_solver"});
+                      "weights", "linear_solver", "partial"});
   if (!problem.contains("domain"))
     throw InputError("domain",
                      "missing: the hyperbolic plane needs a compact source domain, e.g. "

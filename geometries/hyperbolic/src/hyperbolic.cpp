@@ -476,6 +476,12 @@ Cell<Hyperbolic::Point> Hyperbolic::cut_by_ball(const Cell<Point>& cell, const P
   return detail::cut_cell_by_ball(cell, Ball{site, std::exp(weight)});
 }
 
+Cell<Hyperbolic::Point> Hyperbolic::with_sampled_arcs(const Cell<Point>& cell, const Point& site, int pieces) const {
+  return detail::sample_ball_arcs(
+      cell, pieces, [&](const Point& a, const Point& b) { return angle_around(site, a, b); },
+      [&](const Point& a, double angle) { return rotate_around(site, a, angle); });
+}
+
 double Hyperbolic::arc_weight(const Cell<Point>& cell, const Point& site) const {
   // |∇c| = tanh r on the circle and ds = sinh r dθ: each arc gives cosh r · θ.
   double weight = 0;

@@ -72,9 +72,10 @@ std::string draw(const Plane& plane, const std::optional<PlaneRegion>& region, s
   } else {
     svg.polygon(plane.domain().vertices(), "fill=\"#f4f4f4\" stroke=\"black\" stroke-width=\"1.5\"");
   }
-  for (const auto& cell : result.diagram.cells)
-    if (!cell.empty())
-      svg.polygon(cell.vertices, fmt::format("fill=\"none\" stroke=\"#3060a0\" stroke-width=\"{:.2f}\"", stroke));
+  for (std::size_t i = 0; i < result.diagram.cells.size(); ++i)
+    if (!result.diagram.cells[i].empty())
+      svg.polygon(plane.with_sampled_arcs(result.diagram.cells[i], sites[i], 24).vertices,
+                  fmt::format("fill=\"none\" stroke=\"#3060a0\" stroke-width=\"{:.2f}\"", stroke));
   if (region)  // holes over the cells, which extend over the domain's bounding box
     for (const auto& polygon : region->polygons())
       for (const auto& hole : polygon.holes) svg.polygon(hole, "fill=\"white\" stroke=\"black\" stroke-width=\"1.5\"");
@@ -85,9 +86,9 @@ std::string draw(const Plane& plane, const std::optional<PlaneRegion>& region, s
 }
 
 SolveOutput solve_plane(const json& problem, const RunContext& context) {
-  check_known_fields(
-      problem, "",
-      {"geometry", "sites", "masses", "domain", "density", "tolerance", "max_iterations", "weights", "linear_solver"});
+  check_known_fields(problem, "",
+                     {"geometry", "sites", "masses", "domain", "density", "tolerance", "max_iterations", "weights",
+                      "linear_solver", "partial"});
   if (!problem.contains("sites")) throw InputError("sites", "missing");
   const auto sites = to_points(read_points(problem["sites"], "sites", 2));
   if (sites.empty()) throw InputError("sites", "at least one site is needed");

@@ -167,6 +167,16 @@ Cell<Plane::Point> Plane::cut_by_ball(const Cell<Point>& cell, const Point& site
   return detail::cut_cell_by_ball(cell, Ball{site, radius});
 }
 
+Cell<Plane::Point> Plane::with_sampled_arcs(const Cell<Point>& cell, const Point& site, int pieces) const {
+  return detail::sample_ball_arcs(
+      cell, pieces, [&](const Vec2& p, const Vec2& q) { return turn_angle(p - site, q - site); },
+      [&](const Vec2& p, double angle) {
+        const Vec2 u = p - site;
+        const double c = std::cos(angle), s = std::sin(angle);
+        return Vec2(site + Vec2(c * u.x() - s * u.y(), s * u.x() + c * u.y()));
+      });
+}
+
 double Plane::arc_weight(const Cell<Point>& cell, const Point& site) const {
   double angle = 0;
   for (std::size_t k = 0; k < cell.size(); ++k)

@@ -120,7 +120,7 @@ std::string draw(const Sphere& sphere, std::span<const Point> sites, const Resul
   const std::string cell_style = fmt::format("stroke=\"#3060a0\" stroke-width=\"{:.2f}\"", stroke);
   const std::string boundary_style = "stroke=\"black\" stroke-width=\"1.5\"";
   for (std::size_t i = 0; i < result.diagram.cells.size(); ++i) {
-    const auto& cell = result.diagram.cells[i];
+    const auto cell = sphere.with_sampled_arcs(result.diagram.cells[i], sites[i], 24);
     for (std::size_t k = 0; k < cell.size(); ++k) {
       const int j = cell.neighbors[k];
       if (!is_boundary(j) && static_cast<std::size_t>(j) < i) continue;  // each edge once
@@ -129,7 +129,7 @@ std::string draw(const Sphere& sphere, std::span<const Point> sites, const Resul
       const double angle = std::acos(std::clamp(a.dot(b), -1.0, 1.0));
       const int count = 2 + static_cast<int>(angle / 0.01);
       for (const auto& piece : project(sphere.edge_points(cell, k, count)))
-        if (piece.size() >= 2) svg.polyline(piece, is_boundary(j) ? boundary_style : cell_style);
+        if (piece.size() >= 2) svg.polyline(piece, is_domain_boundary(j) ? boundary_style : cell_style);
     }
   }
   const double r = dot_radius_px(sites.size());
@@ -147,7 +147,7 @@ std::string draw(const Sphere& sphere, std::span<const Point> sites, const Resul
 SolveOutput solve_sphere(const json& problem, const RunContext& context) {
   check_known_fields(problem, "",
                      {"geometry", "sites", "masses", "domain", "density", "tolerance", "max_iterations", "weights",
-                      "linear_solver", "builder"});
+                      "partial", "linear_solver", "builder"});
   if (!problem.contains("sites")) throw InputError("sites", "missing");
   const auto sites = to_points(read_points(problem["sites"], "sites", 3));
   if (sites.empty()) throw InputError("sites", "at least one site is needed");

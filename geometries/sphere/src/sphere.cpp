@@ -859,6 +859,13 @@ Cell<Sphere::Point> Sphere::cut_by_ball(const Cell<Point>& cell, const Point& si
                                   Ball{*this, site.normalized(), cos_radius, std::sqrt(-std::expm1(-2 * weight))});
 }
 
+Cell<Sphere::Point> Sphere::with_sampled_arcs(const Cell<Point>& cell, const Point& site, int pieces) const {
+  const Vec3 p = site.normalized();
+  return detail::sample_ball_arcs(
+      cell, pieces, [&](const Vec3& a, const Vec3& b) { return ball_arc_angle(a, b, p); },
+      [&](const Vec3& a, double angle) { return rotate_about(a, p, angle); });
+}
+
 double Sphere::arc_weight(const Cell<Point>& cell, const Point& site) const {
   // |∇c| = tan α on the circle and ds = sin α dφ: each arc gives cos α · φ.
   const Vec3 p = site.normalized();

@@ -158,6 +158,8 @@ class Hyperbolic {
   [[nodiscard]] static double ball_radius(double weight) { return weight > 0 ? std::acosh(std::exp(weight)) : 0; }
   /// ln(1 + area/2π): the weight whose ball (a disc of area 2π(cosh r − 1)) has this area.
   [[nodiscard]] static double ball_weight(double area) { return std::log1p(area / (2 * std::numbers::pi)); }
+  /// The cell with each ball arc drawn as `pieces` geodesic edges (for pictures).
+  [[nodiscard]] Cell<Point> with_sampled_arcs(const Cell<Point>& cell, const Point& site, int pieces) const;
   /// Min and max of ln(−⟨x, site⟩_M) over a non-empty cell.
   [[nodiscard]] std::pair<double, double> cost_range(const Cell<Point>& cell, const Point& site) const;
 

@@ -86,6 +86,8 @@ class Plane {
   [[nodiscard]] static double ball_radius(double weight) { return weight > 0 ? std::sqrt(2 * weight) : 0; }
   /// area / 2π: the weight whose ball has this area.
   [[nodiscard]] static double ball_weight(double area) { return area / (2 * std::numbers::pi); }
+  /// The cell with each ball arc drawn as `pieces` chords (for pictures).
+  [[nodiscard]] Cell<Point> with_sampled_arcs(const Cell<Point>& cell, const Point& site, int pieces) const;
   /// Min and max of |x − site|²/2 over a non-empty polygon cell.
   [[nodiscard]] std::pair<double, double> cost_range(const Cell<Point>& cell, const Point& site) const;
 

@@ -147,6 +147,8 @@ class Sphere {
   [[nodiscard]] static double ball_weight(double area) {
     return area < 2 * std::numbers::pi ? -std::log1p(-area / (2 * std::numbers::pi)) : INFINITY;
   }
+  /// The cell with each ball arc drawn as `pieces` great arcs (for pictures).
+  [[nodiscard]] Cell<Point> with_sampled_arcs(const Cell<Point>& cell, const Point& site, int pieces) const;
   /// Min and max of −ln⟨x, site⟩ over a non-empty cell (+∞ when the cell reaches ⟨x, site⟩ ≤ 0).
   [[nodiscard]] std::pair<double, double> cost_range(const Cell<Point>& cell, const Point& site) const;
 
