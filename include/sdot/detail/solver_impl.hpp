@@ -249,17 +249,17 @@ Result<typename G::Point> solve_in_order(const G& geometry, const D& density, st
                                          std::optional<Eigen::VectorXd> initial_weights,
                                          std::span<const Eigen::Index> original, Clock::time_point start);
 
-/// A start for partial transport from `weights`, whose uncut Laguerre cells are `diagram`: with
+/// Weights for a partial start from `weights`, whose uncut Laguerre cells are `diagram`: with
 /// `common_shift`, first weights + K, K the shift (which leaves the Laguerre diagram as it is) at
-/// which the cut cells together carry the target mass (Illinois' regula falsi, to 0.1 %); then
-/// every weight raised, where needed, until its ball reaches a tenth of the way across its cell's
-/// cost range, so that no cut cell is empty or nearly so. Raising a weight shrinks the neighbours'
-/// Laguerre cells, so the caller checks the result; with `common_floor` the raise is one common
-/// shift instead, which keeps the diagram and so cannot empty a cell.
+/// which the cut cells together carry the target mass (Illinois' regula falsi, to 0.1 %); then the
+/// weight of each cell that would still be empty raised until its ball reaches a tenth of the way
+/// across its cell's cost range. Raising a weight shrinks the neighbours' Laguerre cells, so the
+/// caller checks the result; with `common_floor` the raise is one common shift instead (the
+/// largest such raise), which keeps the diagram and so cannot empty a cell.
 template <PartialGeometry G>
-Eigen::VectorXd partial_start(const G& geometry, std::span<const typename G::Point> sites,
-                              const Eigen::VectorXd& weights, const Diagram<typename G::Point>& diagram,
-                              const Eigen::VectorXd& targets, bool common_shift, bool common_floor = false) {
+Eigen::VectorXd partial_start_weights(const G& geometry, std::span<const typename G::Point> sites,
+                                      const Eigen::VectorXd& weights, const Diagram<typename G::Point>& diagram,
+                                      const Eigen::VectorXd& targets, bool common_shift, bool common_floor = false) {
   const auto n = static_cast<Eigen::Index>(sites.size());
   double lowest = INFINITY, highest = -INFINITY;
   Eigen::VectorXd reach = Eigen::VectorXd::Constant(n, -INFINITY);  // the least weight that reaches in
@@ -302,8 +302,41 @@ Eigen::VectorXd partial_start(const G& geometry, std::span<const typename G::Poi
   Eigen::VectorXd result = weights.array() + shift;
   for (Eigen::Index i = 0; i < n; ++i)
     if (!(masses[i] > 0)) result[i] = std::max(result[i], reach[i]);
-
   return result;
+}
+
+/// The start of a partial solve: replaces `weights` (the Voronoi or default weights, whose uncut
+/// diagram `uncut_given` has every cell non-empty) by weights at which every cut cell is non-empty, and returns their
+/// evaluation. First choice: each ball with the area of its target mass (right when the sites are sparse); where that
+/// empties a cell (a small target next to a large one), the common shift of the given weights with the empty cells
+/// raised (partial_start_weights), repeated a few times, and as a last resort one common shift large enough for every
+/// cell.
+template <PartialGeometry G, Density<G> D>
+Evaluation<typename G::Point> partial_start(const G& geometry, const D& density,
+                                            std::span<const typename G::Point> sites, const Eigen::VectorXd& targets,
+                                            Eigen::VectorXd& weights, const Diagram<typename G::Point>& uncut_given,
+                                            Timings& timings) {
+  Eigen::VectorXd discs = targets.unaryExpr([&](double mass) { return double(geometry.ball_weight(mass)); });
+  if (discs.allFinite()) {
+    auto trial = evaluate(geometry, density, sites, discs, true, &timings, false, true, true);
+    if (trial.masses.minCoeff() > 0) {
+      weights = std::move(discs);
+      return trial;
+    }
+  }
+  const Eigen::VectorXd given = weights;
+  weights = partial_start_weights(geometry, sites, given, uncut_given, targets, true);
+  for (int round = 0; round < 5; ++round) {
+    auto trial = evaluate(geometry, density, sites, weights, true, &timings, false, false, true);
+    if (trial.masses.minCoeff() > 0) return trial;
+    const auto uncut = evaluate(geometry, density, sites, weights, false, &timings, false);
+    if (std::any_of(uncut.diagram.cells.begin(), uncut.diagram.cells.end(),
+                    [](const auto& cell) { return cell.empty(); }))
+      break;
+    weights = partial_start_weights(geometry, sites, weights, uncut.diagram, targets, false);
+  }
+  weights = partial_start_weights(geometry, sites, given, uncut_given, targets, true, true);
+  return evaluate(geometry, density, sites, weights, true, &timings, false, false, true);
 }
 
 inline void validate_targets(const Eigen::VectorXd& targets, std::size_t site_count) {
@@ -434,37 +467,8 @@ sdot::Result<typename G::Point> sdot::detail::solve_in_order(
                                      detail::format_number(target_sum) + ", the source mass is " +
                                      detail::format_number(summary.source_mass));
     if constexpr (PartialGeometry<G>)
-      if (!user_weights) {
-        // First choice: each ball with the area of its target mass (right for sparse sites); where
-        // that leaves a cell empty, a common shift of the default weights, which cannot.
-        Eigen::VectorXd discs = targets.unaryExpr([&](double mass) { return double(geometry.ball_weight(mass)); });
-        Evaluation<Point> trial;
-        if (discs.allFinite())
-          trial = evaluate(geometry, density, sites, discs, true, &summary.timings, false, true, true);
-        if (discs.allFinite() && trial.masses.minCoeff() > 0) {
-          weights = std::move(discs);
-          current = std::move(trial);
-        } else {
-          const Eigen::VectorXd default_weights = weights;
-          weights = partial_start(geometry, sites, default_weights, current.diagram, targets, true);
-          for (int round = 0;; ++round) {
-            auto trial_start = evaluate(geometry, density, sites, weights, true, &summary.timings, false, false, true);
-            if (trial_start.masses.minCoeff() > 0) {
-              current = std::move(trial_start);
-              break;
-            }
-            const auto uncut = evaluate(geometry, density, sites, weights, false, &summary.timings, false);
-
-            if (round == 4 || !std::none_of(uncut.diagram.cells.begin(), uncut.diagram.cells.end(),
-                                            [](const auto& cell) { return cell.empty(); })) {
-              weights = partial_start(geometry, sites, default_weights, current.diagram, targets, true, true);
-              current = evaluate(geometry, density, sites, weights, true, &summary.timings, false, false, true);
-              break;
-            }
-            weights = partial_start(geometry, sites, weights, uncut.diagram, targets, false);
-          }
-        }
-      }
+      if (!user_weights)
+        current = partial_start(geometry, density, sites, targets, weights, current.diagram, summary.timings);
   } else {
     summary.mass_scale = summary.source_mass / target_sum;
     if (!options.rescale_masses && std::abs(summary.mass_scale - 1) > options.mass_sum_tolerance)
