@@ -268,7 +268,7 @@ Eigen::VectorXd partial_start_weights(const G& geometry, std::span<const typenam
     if (cell.empty()) continue;
     const auto [nearest, farthest] = geometry.cost_range(cell, sites[static_cast<std::size_t>(i)]);
     lowest = std::min(lowest, nearest - weights[i]), highest = std::max(highest, farthest - weights[i]);
-    reach[i] = nearest + 0.1 * (farthest - nearest);
+    reach[i] = nearest + 0.01 * (farthest - nearest);
   }
   double shift = 0;
   Eigen::VectorXd masses(n);
@@ -326,7 +326,7 @@ Evaluation<typename G::Point> partial_start(const G& geometry, const D& density,
   }
   const Eigen::VectorXd given = weights;
   weights = partial_start_weights(geometry, sites, given, uncut_given, targets, true);
-  for (int round = 0; round < 5; ++round) {
+  for (int round = 0; round < 10; ++round) {
     auto trial = evaluate(geometry, density, sites, weights, true, &timings, false, false, true);
     if (trial.masses.minCoeff() > 0) return trial;
     const auto uncut = evaluate(geometry, density, sites, weights, false, &timings, false);
