@@ -155,7 +155,8 @@ def main():
         "solve": (f"solve_many: {args.problems} plane problems, {args.sites:,} sites", args.problems, "problems"),
         "param": (f"sphere_parameterization: {args.meshes} meshes, {n_vertices:,} vertices", args.meshes, "meshes"),
     }
-    print(f"<!-- {os.cpu_count()} cores, load average {load:.2f} at the start, median of {args.repeats} runs -->")
+    print(f"<!-- {os.cpu_count()} cores, 1-minute load average {load:.2f} at the start and {os.getloadavg()[0]:.2f} at"
+          f" the end, median of {args.repeats} runs -->")
     print("| batch | run by | cluster start-up (s) | time (s) | items per second | against 1 worker |")
     print("|---|---|---|---|---|---|")
     for case, (title, count, _) in cases.items():
