@@ -6,6 +6,7 @@ packages=(cmake g++ make libeigen3-dev libboost-dev libqhull-dev libcgal-dev lib
           nlohmann-json3-dev python3-numpy
           pybind11-dev python3-dev python3-pytest python3-matplotlib python3-setuptools python3-wheel python3-pip
           python3-venv python3-nibabel  # nibabel: the FreeSurfer cross-check (python/tests/test_freesurfer.py)
+          python3-dask python3-distributed  # sdot.batch (python/sdot/batch.py, docs/scaling.md)
           doxygen
           clang-14 libfuzzer-14-dev libomp-14-dev)  # scripts/fuzz.sh (libFuzzer harnesses, tests/fuzz)
 missing=()

@@ -8,6 +8,7 @@
 
 Functions: `solve`, `sphere_parameterization`, `read_mesh`, `write_mesh`; pictures in
 `sdot.plot` (needs matplotlib); `python -m sdot.bench` times the solver like `sdot bench`.
+Many problems at once on a Dask cluster: `sdot.batch` (needs dask and distributed).
 """
 
 from ._mesh import read_mesh, sphere_parameterization, write_mesh
@@ -18,9 +19,9 @@ __all__ = ["solve", "SolveResult", "BALL_ARC", "sphere_parameterization", "read_
 
 
 def __getattr__(name):
-    # sdot.plot imports matplotlib: only on first use.
-    if name == "plot":
+    # sdot.plot imports matplotlib and sdot.batch Dask: only on first use.
+    if name in ("plot", "batch"):
         import importlib
 
-        return importlib.import_module(".plot", __name__)
+        return importlib.import_module("." + name, __name__)
     raise AttributeError(f"module 'sdot' has no attribute {name!r}")

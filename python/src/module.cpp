@@ -220,6 +220,7 @@ PYBIND11_MODULE(_sdot, m) {
   m.def("sphere_parameterization", &sphere_parameterization);
   m.def("read_mesh", &read_mesh);
   m.def("write_mesh", &write_mesh);
+  m.def("mesh_format", &sphparam::mesh_format);  // the format a name says ("" when it says none)
   m.def("has_cholmod", &sdot::has_cholmod);
   m.def("peak_rss_mb", &sdot::peak_resident_memory_mb);
 }
