@@ -27,6 +27,6 @@ def test_bench_line_matches_the_command(sdot_command, geometry):
 
 
 def test_bench_rejects_bad_arguments():
-    out = subprocess.run([sys.executable, "-m", "sdot.bench", "--geometry", "torus", "--n", "10"],
+    out = subprocess.run([sys.executable, "-m", "sdot.bench", "--geometry", "cube", "--n", "10"],
                          capture_output=True, text=True)
     assert out.returncode == 2 and "invalid choice" in out.stderr
