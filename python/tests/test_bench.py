@@ -9,7 +9,7 @@ import pytest
 from conftest import run
 
 
-@pytest.mark.parametrize("geometry", ["plane", "sphere", "hyperbolic"])
+@pytest.mark.parametrize("geometry", ["plane", "sphere", "hyperbolic", "torus"])
 def test_bench_line_matches_the_command(sdot_command, geometry):
     args = ["--geometry", geometry, "--n", "3000", "--seed", "3", "--tolerance", "1e-8", "--quiet"]
     python = json.loads(
