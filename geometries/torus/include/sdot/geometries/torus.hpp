@@ -117,7 +117,8 @@ class Torus {
 
   /// The image of `site_j` (wrapped, then moved by −1, 0 or +1 period along each periodic axis)
   /// whose power bisector with the wrapped `site_i` carries the edge [a, b] of the cell of site i:
-  /// the one with the smallest power difference at a and b.
+  /// the image nearest to site i when it balances the powers at a and b to round-off (nearly
+  /// always), else the one with the smallest power difference there.
   [[nodiscard]] Point image_across(const Point& a, const Point& b, const Point& site_i, double weight_i,
                                    const Point& site_j, double weight_j) const;
   /// Calls `visit(part, shift)` for each non-empty part of `cell` (a polygon of the covering
