@@ -377,16 +377,13 @@ Diagram<Torus::Point> Torus::build_diagram(std::span<const Point> sites, const E
         }
       }
       const SideEnvelope envelope(std::move(parabolas), depth * depth + 2 * closest * depth - max_power_weight);
-      double side_shortfall = -1;
-      const auto vertex_count = static_cast<std::ptrdiff_t>(vertices.size());
-#pragma omp parallel for schedule(static) reduction(max : side_shortfall)
-      for (std::ptrdiff_t k = 0; k < vertex_count; ++k) {
-        const SideVertex& v = vertices[static_cast<std::size_t>(k)];
-        const double bound = v.distance * v.distance + envelope(v.along);
-        if (!(bound > v.power))
-          side_shortfall = std::max(side_shortfall, std::sqrt(std::max(0.0, v.power - envelope(v.along))) - v.distance);
+      // Some 10⁴ vertices at 10⁶ sites: not worth a parallel region (whose threads wait on a busy
+      // machine).
+      for (const SideVertex& v : vertices) {
+        const double below = envelope(v.along);
+        if (!(v.distance * v.distance + below > v.power))
+          shortfall = std::max({shortfall, 0.0, std::sqrt(std::max(0.0, v.power - below)) - v.distance});
       }
-      if (side_shortfall >= 0) shortfall = std::max({shortfall, side_shortfall, 0.0});
     }
     const bool exact = !reaches_side && shortfall < 0;
     if (exact || full_tiling) {
