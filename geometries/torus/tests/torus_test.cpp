@@ -391,8 +391,8 @@ TEST(Torus, FunctionDensityGivenOnTheBox) {
   // the box's sides, so the quadrature sees a smooth ρ on each part. PeriodicDensity over the
   // plane's FunctionDensity is the same computation.
   const Torus torus;
-  const auto sites = random_points(150, 21);
-  const Eigen::VectorXd masses = random_masses(150, 22, 5, 1);
+  const auto sites = random_points(50, 21);
+  const Eigen::VectorXd masses = random_masses(50, 22, 5, 1);
   const ScalarField<Point> rho = [](const Point& x) { return 0.5 + x.x() * x.x() + 0.5 * std::sin(6 * x.y()); };
   Options options = tight(1e-10);
   options.rescale_masses = true;
@@ -427,8 +427,8 @@ TEST(Torus, MeshDensityOnTheBox) {
   const PeriodicDensity density(mesh_density(torus.plane(), std::span<const Point>(mesh.vertices),
                                              std::span<const std::array<int, 3>>(mesh.triangles),
                                              std::span<const double>(values)));
-  const auto sites = random_points(60, 23);
-  const auto result = solve(torus, density, std::span<const Point>(sites), equal_masses(60, 1));
+  const auto sites = random_points(30, 23);
+  const auto result = solve(torus, density, std::span<const Point>(sites), equal_masses(30, 1));
   ASSERT_TRUE(result.summary.converged()) << result.summary.message;
   EXPECT_NEAR(result.summary.source_mass, 1, 1e-12);  // the sine averages out on the grid
   EXPECT_LT(hessian_fd_error(torus, density, std::span<const Point>(sites), result.weights), 1e-6);
