@@ -30,6 +30,9 @@ import time
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 GEOMETRIES = ["plane", "sphere", "hyperbolic"]
+# The core table: each geometry at every size, and the periodic plane (`torus`, the plane's sites on
+# the periodic unit square) from 10^5 sites on, next to the plane's rows.
+CORE_ROWS = [("plane", 1), ("torus", 100_000), ("sphere", 1), ("hyperbolic", 1)]
 
 
 def log(message):
@@ -124,8 +127,8 @@ def core_command(sdot, geometry, n):
 
 def core_rows(sdot, sizes, repeats_small):
     rows = []
-    for geometry in GEOMETRIES:
-        for n in sizes:
+    for geometry, smallest in CORE_ROWS:
+        for n in (n for n in sizes if n >= smallest):
             command = core_command(sdot, geometry, n)
             runs = []
             for _ in range(repeats_small if n <= 100_000 else 1):

@@ -7,7 +7,7 @@ import numpy as np
 
 from . import _sdot
 
-GEOMETRIES = ("plane", "sphere", "hyperbolic")
+GEOMETRIES = ("plane", "sphere", "hyperbolic", "torus")
 LINEAR_SOLVERS = ("auto", "ldlt", "cg", "cholmod", "multigrid")
 #: The ``cell_neighbors`` label of an edge that is an arc of the site's ball (partial transport).
 BALL_ARC = -(2**31)
@@ -75,6 +75,44 @@ def _domain(domain, geometry):
     return ("polygon", _float_array(domain, "domain", ndim=2, columns=columns))
 
 
+def _periodic(periodic, geometry, domain):
+    """For a periodic problem (`periodic` set, or geometry "torus"): the periodic axes (x, y) and
+    the box ("box", x0, y0, x1, y1) as the compiled core expects them; None otherwise."""
+    if geometry == "torus":  # periodic by default; periodic=False leaves the box, unwrapped
+        periodic = True if periodic is None else (False, False) if periodic is False else periodic
+    elif periodic is None or periodic is False:
+        return None
+    if geometry not in ("plane", "torus"):
+        raise ValueError(f"periodic: only the plane has periodic domains, not the {geometry} geometry")
+    if isinstance(periodic, (bool, np.bool_)):
+        axes = (bool(periodic), bool(periodic))
+    else:
+        try:
+            axes = tuple(periodic)
+        except TypeError:
+            axes = ()
+        if len(axes) != 2 or not all(isinstance(a, (bool, np.bool_)) for a in axes):
+            raise ValueError(f"periodic: must be True, False or two booleans (x, y), got {periodic!r}")
+        axes = (bool(axes[0]), bool(axes[1]))
+    box = "domain: a periodic problem needs a rectangular box: (x0, y0, x1, y1) or its 4 corners, shape (4, 2)"
+    if domain is None:
+        return axes, ("box", 0.0, 0.0, 1.0, 1.0)
+    if isinstance(domain, dict):
+        raise ValueError(box)
+    array = _float_array(domain, "domain")
+    if array.shape == (4,):
+        return axes, ("box", *map(float, array))
+    if array.shape != (4, 2):
+        raise ValueError(f"{box}; got shape {array.shape}")
+    low, high = array.min(axis=0), array.max(axis=0)
+    for k, corner in enumerate(array):
+        if not (corner[0] in (low[0], high[0]) and corner[1] in (low[1], high[1])):
+            raise ValueError(f"domain[{k}]: {box[len('domain: '):]} (this corner is not one of an axis-aligned box)")
+    if len({(float(x), float(y)) for x, y in array}) != 4:
+        raise ValueError(f"{box} (its corners repeat)")
+    return axes, ("box", float(low[0]), float(low[1]), float(high[0]), float(high[1]))
+
+
 def _density(density, extent, interpolation, quadrature_order):
     """The density as the compiled core expects it: None, or a tagged tuple."""
     if density is None:
@@ -133,7 +171,9 @@ class SolveResult:
     ``cell_neighbors`` (the site across each edge; negative on the domain's boundary, and
     ``BALL_ARC`` for an arc of the site's ball in a partial-transport solve, from that vertex to
     the next counter-clockwise around the site). With ``partial=True``, ``ball_radii`` holds each
-    ball's (geodesic) radius.
+    ball's (geodesic) radius. A periodic plane's result also has ``box`` (x0, y0, x1, y1) and
+    ``periodic`` (x, y); its cells are polygons of the covering plane around the sites wrapped
+    into the box.
     On H², points are in the hyperboloid (x, y, z), and ``centroids_poincare``,
     ``cells_poincare`` and ``cell_vertices_poincare`` give them in the Poincaré disk.
     """
@@ -230,6 +270,7 @@ def solve(
     extent=None,
     interpolation=None,
     quadrature_order=None,
+    periodic=None,
 ):
     """Semi-discrete optimal transport from a density to the Diracs Σ masses[i] δ(sites[i]).
 
@@ -242,7 +283,7 @@ def solve(
     masses : array (n,), positive, summing to the source's mass (the domain's area for the uniform
         density). None: equal masses. With ``rescale_masses=True`` any positive masses are
         scaled to the source's mass (the factor is ``result.mass_scale``).
-    geometry : "plane", "sphere" or "hyperbolic".
+    geometry : "plane", "sphere", "hyperbolic", or "torus" (the plane with periodic=True).
     domain : plane: None (the unit square), a polygon (k, 2) or {"outer": ring, "holes": [...]}
         (or a list of those); sphere: None (the whole sphere), {"center": xyz, "angle": radians}
         (a cap) or a convex polygon (k, 3); H²: a convex polygon (required), in `model`'s coordinates.
@@ -269,6 +310,14 @@ def solve(
     interpolation : image densities: "bilinear" or "constant" (plane), "linear" or "constant" (sphere).
     quadrature_order : points per direction of the quadrature of function (default 8) and
         piecewise-linear mesh densities (default 3).
+    periodic : plane only: True (both axes), or (x, y) booleans, makes the domain periodic: a box
+        whose opposite sides are identified, with the cost ½ d² for d the distance on the torus
+        (docs/torus.md). `domain` is then the box, (x0, y0, x1, y1) or its 4 corners (4, 2)
+        (default the unit square); sites anywhere (wrapped into the box); densities are given on
+        the box. The cells are convex polygons of the covering plane around the wrapped sites
+        (vertices possibly outside the box, by less than half a period), centroids are in the box,
+        and the result has ``box`` and ``periodic``. geometry="torus" is the same with
+        periodic=True by default.
 
     Returns
     -------
@@ -278,7 +327,8 @@ def solve(
     """
     if geometry not in GEOMETRIES:
         raise ValueError(f"geometry: must be one of {', '.join(map(repr, GEOMETRIES))}, got {geometry!r}")
-    columns = {"plane": (2,), "sphere": (3,), "hyperbolic": (3,) if model == "hyperboloid" else (2,)}[geometry]
+    hyperbolic_columns = (3,) if model == "hyperboloid" else (2,)
+    columns = {"plane": (2,), "torus": (2,), "sphere": (3,), "hyperbolic": hyperbolic_columns}[geometry]
     sites = _float_array(sites, "sites", ndim=2, columns=columns)
     if len(sites) == 0:
         raise ValueError("sites: at least one site is needed")
@@ -310,14 +360,19 @@ def solve(
         if geometry != "sphere":
             raise ValueError("builder: only the sphere has a choice of builder")
         extra["builder"] = builder
+    core_geometry = geometry
+    periodic_box = _periodic(periodic, geometry, domain)
+    if periodic_box is not None:  # the compiled core's "torus" geometry
+        core_geometry = "torus"
+        extra["periodic"], domain = periodic_box
     hook = _iteration_hook(progress, callback)
     try:
         fields = _sdot.solve(
-            geometry,
+            core_geometry,
             sites,
             masses,
             weights,
-            _domain(domain, geometry),
+            domain if periodic_box is not None else _domain(domain, geometry),
             _density(density, extent, interpolation, quadrature_order),
             extra,
             float(tolerance),

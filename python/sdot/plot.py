@@ -154,6 +154,26 @@ def _curved_cells(result, samples_per_edge):
     return curves
 
 
+def _wrapped_cells(result):
+    """A periodic plane's cells where they show in the box: each moved by the periods that make
+    it overlap the box (drawn clipped to it). Returns the cell index of each polygon and the polygons."""
+    x0, y0, x1, y1 = result.box
+    period = np.array([x1 - x0, y1 - y0])
+    steps = [(-1, 0, 1) if axis else (0,) for axis in result.periodic]
+    keep, polygons = [], []
+    for i, cell in enumerate(result.cells):
+        if len(cell) < 3:
+            continue
+        low, high = cell.min(axis=0), cell.max(axis=0)
+        for sx in steps[0]:
+            for sy in steps[1]:
+                shift = np.array([sx, sy]) * period
+                if (low + shift < [x1, y1]).all() and (high + shift > [x0, y0]).all():
+                    keep.append(i)
+                    polygons.append(cell + shift)
+    return keep, polygons
+
+
 def _add_cells(ax, polygons, keep, colors, edgecolor, linewidth):
     """The non-empty cells `polygons` (cells `keep`), filled with their colours when given."""
     facecolors = colors[keep] if colors is not None else "none"
@@ -164,7 +184,7 @@ def cells(result, ax=None, color_by=None, cmap="viridis", sites=True, centroids=
           linewidth=None, samples_per_edge=12):
     """Draws the Laguerre cells of a `SolveResult` and returns the axes.
 
-    Plane: the cells in the plane. Sphere: the Mollweide (equal-area) projection, edges cut at
+    Plane: the cells in the plane (periodic: wrapped into the box). Sphere: the Mollweide (equal-area) projection, edges cut at
     the ±180° meridian. H²: the Poincaré disk, edges drawn as geodesic arcs.
 
     color_by : None (outlines only), "mass", "weight", "target_mass", "error" (relative mass
@@ -179,7 +199,16 @@ def cells(result, ax=None, color_by=None, cmap="viridis", sites=True, centroids=
     colors = _colors(result, color_by, cmap)
     dot = float(np.clip(400.0 / max(n, 1), 0.5, 20.0))
 
-    if result.geometry == "plane":
+    if result.geometry in ("plane", "torus") and getattr(result, "periodic", None) is not None:
+        keep, polygons = _wrapped_cells(result)
+        _add_cells(ax, polygons, keep, colors, edgecolor, linewidth)
+        x0, y0, x1, y1 = result.box
+        ax.collections[-1].set_clip_path(plt.Rectangle((x0, y0), x1 - x0, y1 - y0, transform=ax.transData))
+        ax.add_patch(plt.Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, color="black", linewidth=1.0))
+        period = np.array([x1 - x0, y1 - y0])
+        site_xy = np.array([x0, y0]) + np.mod(result.sites - np.array([x0, y0]), period)
+        centroid_xy = result.centroids
+    elif result.geometry == "plane":
         keep = [i for i, c in enumerate(result.cells) if len(c) >= 3]
         _add_cells(ax, [c for c in _curved_cells(result, samples_per_edge) if c is not None], keep, colors, edgecolor,
                    linewidth)
@@ -227,7 +256,7 @@ def cells(result, ax=None, color_by=None, cmap="viridis", sites=True, centroids=
         ax.scatter(site_xy[:, 0], site_xy[:, 1], s=dot, color="#d03020", zorder=4, linewidths=0)
     ax.set_aspect("equal")
     ax.autoscale_view()
-    if result.geometry != "plane":
+    if result.geometry not in ("plane", "torus"):
         ax.set_axis_off()
     return ax
 

@@ -30,7 +30,7 @@ HEXAGON = 0.7 * np.column_stack((np.cos(np.arange(6) * np.pi / 3), np.sin(np.ara
         (dict(sites=SITES, tolerance=-1e-9), ValueError, "tolerance: must be a positive number"),
         (dict(sites=SITES, tolerance="tight"), TypeError, "tolerance: must be a number"),
         (dict(sites=SITES, max_iterations=-1), ValueError, "max_iterations: must be >= 0"),
-        (dict(sites=SITES, geometry="torus"), ValueError, "geometry: must be one of"),
+        (dict(sites=SITES, geometry="cube"), ValueError, "geometry: must be one of"),
         (dict(sites=SITES, linear_solver="lu"), ValueError, "linear_solver: must be one of"),
         (dict(sites=SITES, weights=np.ones(3)), ValueError, "weights: there are 3 weights for 50 sites"),
         (dict(sites=SITES, callback=3), TypeError, "callback: must be callable"),

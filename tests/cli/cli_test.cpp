@@ -153,9 +153,15 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"sphere_coincident_after_normalisation",
                  R"({"geometry": "sphere", "sites": [[1,0,0],[2,0,0],[0,0,1],[0,0,-1],[-1,0,0]]})",
                  "sites[1]: duplicate of sites[0] (after normalisation)"},
-        BadInput{"unknown_geometry", R"({"geometry": "torus", "sites": [[0,0]]})",
-                 "geometry: unknown geometry 'torus'"},
+        BadInput{"unknown_geometry", R"({"geometry": "cube", "sites": [[0,0]]})", "geometry: unknown geometry 'cube'"},
         BadInput{"missing_geometry", R"({"sites": [[0,0]]})", "geometry: missing"},
+        BadInput{"torus_periodic", R"({"geometry": "torus", "sites": [[0.1,0.1],[0.5,0.5]], "periodic": [true]})",
+                 "periodic: must be true, false or two booleans [x, y]"},
+        BadInput{"torus_domain",
+                 R"({"geometry": "torus", "sites": [[0.1,0.1],[0.5,0.5]], "domain": [[0,0],[1,0],[0,1]]})",
+                 "domain: a periodic problem needs a rectangular box"},
+        BadInput{"torus_duplicate", R"({"geometry": "torus", "sites": [[0.1,0.1],[0.5,0.5],[1.1,-0.9]]})",
+                 "sites[2]: duplicate of sites[0] modulo the period"},
         BadInput{"nan_site", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5,"x"]]})",
                  "sites[1]: coordinate 1 is not a number"},
         BadInput{"short_site", R"({"geometry": "plane", "sites": [[0.1,0.1],[0.5]]})",
@@ -412,7 +418,7 @@ TEST(Cli, DemoWritesResultsAndPictures) {
 }
 
 TEST(Cli, BenchEveryGeometry) {
-  for (const std::string geometry : {"sphere", "hyperbolic"}) {
+  for (const std::string geometry : {"sphere", "hyperbolic", "torus"}) {
     const auto r = run("bench --geometry " + geometry + " --n 300 --quiet");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_EQ(json::parse(r.out)["geometry"], geometry);
