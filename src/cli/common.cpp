@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <numbers>
 #include <set>
 
 namespace sdot::cli {
@@ -227,6 +228,25 @@ std::string Svg::str() const {
 
 double dot_radius_px(std::size_t count) {
   return std::clamp(40.0 / std::sqrt(static_cast<double>(std::max<std::size_t>(count, 1))), 0.6, 5.0);
+}
+
+TriangleMesh<Eigen::Vector2d> unit_square_bench_mesh(std::size_t triangles, std::vector<double>& values) {
+  const int k = std::max(1, static_cast<int>(std::lround(std::sqrt(static_cast<double>(triangles) / 2))));
+  TriangleMesh<Eigen::Vector2d> mesh;
+  values.clear();
+  for (int j = 0; j <= k; ++j)
+    for (int i = 0; i <= k; ++i) {
+      const Eigen::Vector2d p(static_cast<double>(i) / k, static_cast<double>(j) / k);
+      mesh.vertices.push_back(p);
+      values.push_back(1 + 0.5 * std::sin(2 * std::numbers::pi * p.x()) * std::sin(2 * std::numbers::pi * p.y()));
+    }
+  for (int j = 0; j < k; ++j)
+    for (int i = 0; i < k; ++i) {
+      const int a = j * (k + 1) + i, b = a + 1, c = a + k + 1, d = c + 1;
+      mesh.triangles.push_back({a, b, d});
+      mesh.triangles.push_back({a, d, c});
+    }
+  return mesh;
 }
 
 }  // namespace sdot::cli

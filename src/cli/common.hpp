@@ -210,6 +210,10 @@ json bench_json(const std::string& geometry, std::size_t n, const Result<Point>&
           {"peak_rss_mb", peak_resident_memory_mb()}};
 }
 
+/// The bench density of the unit square (plane and torus): a k × k grid of squares, two triangles
+/// each, about `triangles` in all, with per-vertex values ρ = 1 + ½ sin(2πx) sin(2πy) in `values`.
+TriangleMesh<Eigen::Vector2d> unit_square_bench_mesh(std::size_t triangles, std::vector<double>& values);
+
 /// The benchmark: the uniform density, or (request.density_triangles > 0) the mesh density that
 /// `make_density(triangles)` builds; the line then also gives the mesh's size and build time.
 template <class G, class MakeDensity>
@@ -219,7 +223,7 @@ json run_bench(const G& geometry, std::span<const typename G::Point> sites, cons
   if (request.density_triangles == 0)
     return bench_json(std::string(G::name()), request.n, solve(geometry, UniformDensity{}, sites, masses, options));
   const auto start = std::chrono::steady_clock::now();
-  const PiecewiseDensity<G> density = make_density(request.density_triangles);
+  const auto density = make_density(request.density_triangles);
   const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   json line = bench_json(std::string(G::name()), request.n, solve(geometry, density, sites, masses, options));
   line["density_triangles"] = density.piece_count();

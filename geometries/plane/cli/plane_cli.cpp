@@ -130,22 +130,8 @@ json bench_plane(const BenchRequest& request) {
   const Plane plane;
   const auto sites = plane.uniform_samples(request.n, request.seed);
   return run_bench(plane, std::span<const Point>(sites), equal_masses(request.n), request, [&](std::size_t triangles) {
-    // A k × k grid of squares, two triangles each; ρ = 1 + ½ sin(2πx) sin(2πy).
-    const int k = std::max(1, static_cast<int>(std::lround(std::sqrt(static_cast<double>(triangles) / 2))));
-    TriangleMesh<Point> mesh;
     std::vector<double> values;
-    for (int j = 0; j <= k; ++j)
-      for (int i = 0; i <= k; ++i) {
-        const Point p(static_cast<double>(i) / k, static_cast<double>(j) / k);
-        mesh.vertices.push_back(p);
-        values.push_back(1 + 0.5 * std::sin(2 * std::numbers::pi * p.x()) * std::sin(2 * std::numbers::pi * p.y()));
-      }
-    for (int j = 0; j < k; ++j)
-      for (int i = 0; i < k; ++i) {
-        const int a = j * (k + 1) + i, b = a + 1, c = a + k + 1, d = c + 1;
-        mesh.triangles.push_back({a, b, d});
-        mesh.triangles.push_back({a, d, c});
-      }
+    const auto mesh = unit_square_bench_mesh(triangles, values);
     return mesh_density(plane, std::span<const Point>(mesh.vertices),
                         std::span<const std::array<int, 3>>(mesh.triangles), std::span<const double>(values));
   });

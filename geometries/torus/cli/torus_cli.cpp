@@ -135,38 +135,13 @@ json bench_torus(const BenchRequest& request) {
   // The plane's benchmark problem (the same sites in the unit square), on the torus.
   const Torus torus;
   const auto sites = torus.uniform_samples(request.n, request.seed);
-  const std::span<const Point> site_span(sites);
-  const Options options = bench_options(request);
-  const Eigen::VectorXd masses = equal_masses(request.n);
-  if (request.density_triangles == 0)
-    return bench_json(std::string(Torus::name()), request.n,
-                      solve(torus, UniformDensity{}, site_span, masses, options));
-  // The plane's bench density: a k × k grid of squares, two triangles each; ρ = 1 + ½ sin(2πx) sin(2πy).
-  const auto start = std::chrono::steady_clock::now();
-  const int k =
-      std::max(1, static_cast<int>(std::lround(std::sqrt(static_cast<double>(request.density_triangles) / 2))));
-  TriangleMesh<Point> mesh;
-  std::vector<double> values;
-  for (int j = 0; j <= k; ++j)
-    for (int i = 0; i <= k; ++i) {
-      const Point p(static_cast<double>(i) / k, static_cast<double>(j) / k);
-      mesh.vertices.push_back(p);
-      values.push_back(1 + 0.5 * std::sin(2 * std::numbers::pi * p.x()) * std::sin(2 * std::numbers::pi * p.y()));
-    }
-  for (int j = 0; j < k; ++j)
-    for (int i = 0; i < k; ++i) {
-      const int a = j * (k + 1) + i, b = a + 1, c = a + k + 1, d = c + 1;
-      mesh.triangles.push_back({a, b, d});
-      mesh.triangles.push_back({a, d, c});
-    }
-  const PeriodicDensity density(mesh_density(torus.plane(), std::span<const Point>(mesh.vertices),
-                                             std::span<const std::array<int, 3>>(mesh.triangles),
-                                             std::span<const double>(values)));
-  const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  json line = bench_json(std::string(Torus::name()), request.n, solve(torus, density, site_span, masses, options));
-  line["density_triangles"] = density.box_density().piece_count();
-  line["density_build_s"] = build_s;
-  return line;
+  return run_bench(torus, std::span<const Point>(sites), equal_masses(request.n), request, [&](std::size_t triangles) {
+    std::vector<double> values;  // the plane's bench density, repeated
+    const auto mesh = unit_square_bench_mesh(triangles, values);
+    return PeriodicDensity(mesh_density(torus.plane(), std::span<const Point>(mesh.vertices),
+                                        std::span<const std::array<int, 3>>(mesh.triangles),
+                                        std::span<const double>(values)));
+  });
 }
 
 json demo_torus() {

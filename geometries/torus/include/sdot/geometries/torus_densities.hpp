@@ -29,6 +29,9 @@ class PeriodicDensity {
   explicit PeriodicDensity(D density) : density_(std::move(density)) {}
   /// The density of the box.
   [[nodiscard]] const D& box_density() const { return density_; }
+  /// The box density's piece count (of a PiecewiseDensity; the bench line reports it).
+  [[nodiscard]] std::size_t piece_count() const requires requires(const D& d) { d.piece_count(); }
+  { return density_.piece_count(); }
 
   /// Mass, first moment (on the covering plane, around the wrapped site) and cost of the cell.
   [[nodiscard]] CellIntegrals<Point> integrate_cell(const Torus& torus, const Cell<Point>& cell, const Point& site,
