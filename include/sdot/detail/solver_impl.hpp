@@ -297,8 +297,9 @@ Eigen::VectorXd partial_start_weights(const G& geometry, std::span<const typenam
     }
   }
   if (common_floor) return weights.array() + std::max(shift, (reach - weights).maxCoeff());
-  // Raise only the cells that would start empty.
-  excess(shift);
+  // Raise only the cells that would start empty (`masses` already holds the cuts at the final
+  // shift when the regula falsi ran: its last evaluation is at `shift`).
+  if (!(common_shift && lowest < highest)) excess(shift);
   Eigen::VectorXd result = weights.array() + shift;
   for (Eigen::Index i = 0; i < n; ++i)
     if (!(masses[i] > 0)) result[i] = std::max(result[i], reach[i]);
