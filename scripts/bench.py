@@ -3,12 +3,13 @@
 
     /usr/bin/python3 scripts/bench.py [--quick] [--build build] [--doc docs/benchmarks.md]
                                       [--sections core python densities param] [--sizes N ...]
-                                      [--meshes DIR] [--json FILE]
+                                      [--large] [--meshes DIR] [--json FILE]
 
 Without --quick it rewrites the generated blocks of the document (between
 `<!-- bench:NAME -->` and `<!-- /bench:NAME -->`) and docs/images/scaling.png. With --quick it runs
 a smaller set (N up to 10^5, meshes up to 15,000 vertices, no density-mesh rows) in a few minutes
-and only prints the tables. Every row is one command, printed above its table; the machine, the
+and only prints the tables; --large adds the 10^7-site core solves (plane, sphere, H²) to the
+tables and the scaling plot. Every row is one command, printed above its table; the machine, the
 date and the commit go into the `machine` block.
 
 The shared meshes (../shared/meshes) and the independent evaluator
@@ -32,7 +33,8 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 GEOMETRIES = ["plane", "sphere", "hyperbolic"]
 # The core table: each geometry at every size, and the periodic plane (`torus`, the plane's sites on
 # the periodic unit square) from 10^5 sites on, next to the plane's rows.
-CORE_ROWS = [("plane", 1), ("torus", 100_000), ("sphere", 1), ("hyperbolic", 1)]
+# (geometry, smallest N, largest N): the torus shares the plane's builder, so its rows stop at 10⁶.
+CORE_ROWS = [("plane", 1, 10 ** 9), ("torus", 100_000, 1_000_000), ("sphere", 1, 10 ** 9), ("hyperbolic", 1, 10 ** 9)]
 
 
 def log(message):
@@ -127,8 +129,8 @@ def core_command(sdot, geometry, n):
 
 def core_rows(sdot, sizes, repeats_small):
     rows = []
-    for geometry, smallest in CORE_ROWS:
-        for n in (n for n in sizes if n >= smallest):
+    for geometry, smallest, largest in CORE_ROWS:
+        for n in (n for n in sizes if smallest <= n <= largest):
             command = core_command(sdot, geometry, n)
             runs = []
             for _ in range(repeats_small if n <= 100_000 else 1):
@@ -299,6 +301,8 @@ def main():
     parser.add_argument("--sections", nargs="+", default=["core", "python", "densities", "param"],
                         choices=["core", "python", "densities", "param"])
     parser.add_argument("--sizes", type=int, nargs="+", help="core-solve sizes (default 1e3 … 1e6)")
+    parser.add_argument("--large", action="store_true",
+                        help="add N = 1e7 to the core solve (plane, sphere, H²: about 15 minutes and 14 GB more)")
     parser.add_argument("--meshes", default=str(ROOT.parent / "shared" / "meshes"))
     parser.add_argument("--json", help="also write every raw figure here")
     args = parser.parse_args()
@@ -309,6 +313,8 @@ def main():
     if not sdot.exists():
         sys.exit(f"{sdot} not found: build first (scripts/build.sh) or pass --build DIR")
     sizes = args.sizes or ([1000, 10_000, 100_000] if args.quick else [1000, 10_000, 100_000, 1_000_000])
+    if args.large:
+        sizes = sorted(set(sizes) | {10_000_000})
     blocks, raw = {"machine": machine_block(build)}, {}
 
     if "core" in args.sections:

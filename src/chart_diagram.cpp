@@ -465,21 +465,30 @@ bool has_regular_triangulation() {
 namespace {
 
 /// Cell i = the domain clipped by its Laguerre neighbours, in coordinates u = v − c_i (see below).
+/// The clipping runs in a per-thread buffer; the cell gets exactly-sized copies (the buffers'
+/// capacity, grown by every cell the thread clipped, would otherwise stay with the cells).
 void clip_cell(ChartCell& cell, std::size_t i, std::span<const int> neighbors, std::span<const Vec2> centers,
                std::span<const double> power_weight, const std::vector<Vec2>& boundary) {
   const Vec2 center = centers[i];
-  cell.vertices.resize(boundary.size());
-  cell.neighbors.resize(boundary.size());
+  thread_local ChartCell work;
+  work.vertices.resize(boundary.size());
+  work.neighbors.resize(boundary.size());
   for (std::size_t k = 0; k < boundary.size(); ++k) {
-    cell.vertices[k] = boundary[k] - center;
-    cell.neighbors[k] = boundary_label(static_cast<int>(k));
+    work.vertices[k] = boundary[k] - center;
+    work.neighbors[k] = boundary_label(static_cast<int>(k));
   }
   for (int j : neighbors) {
     const Vec2 d = centers[static_cast<std::size_t>(j)] - center;
-    clip(cell, -2 * d, d.squaredNorm() + power_weight[i] - power_weight[static_cast<std::size_t>(j)], j);
-    if (cell.vertices.empty()) return;
+    clip(work, -2 * d, d.squaredNorm() + power_weight[i] - power_weight[static_cast<std::size_t>(j)], j);
+    if (work.vertices.empty()) {
+      cell.vertices.clear();
+      cell.neighbors.clear();
+      return;
+    }
   }
-  for (auto& u : cell.vertices) u += center;
+  cell.vertices.resize(work.vertices.size());
+  for (std::size_t k = 0; k < work.vertices.size(); ++k) cell.vertices[k] = work.vertices[k] + center;
+  cell.neighbors.assign(work.neighbors.begin(), work.neighbors.end());
 }
 
 std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> centers,
@@ -487,10 +496,11 @@ std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> cent
                                                       bool stop_at_empty_cell) {
   const std::size_t n = centers.size();
   std::vector<ChartCell> cells(n);
-  const auto triangulation = detail::regular_triangulation(centers, power_weight);
+  const auto triangulation = detail::regular_triangulation(centers, power_weight, stop_at_empty_cell);
   // A hidden site has an empty cell: a line search rejects the step without the other cells.
-  if (stop_at_empty_cell &&
-      std::find(triangulation.is_vertex.begin(), triangulation.is_vertex.end(), 0) != triangulation.is_vertex.end())
+  if (triangulation.stopped_at_hidden ||
+      (stop_at_empty_cell &&
+       std::find(triangulation.is_vertex.begin(), triangulation.is_vertex.end(), 0) != triangulation.is_vertex.end()))
     return cells;
   std::atomic<bool> found_empty{false};
   // In the triangulation's storage order, close to its (Hilbert) insertion order: neighbouring

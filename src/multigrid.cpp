@@ -14,10 +14,11 @@ namespace sdot {
 namespace {
 
 /// Compressed sparse rows.
-struct RowMatrix {
+template <class Real>
+struct Rows {
   int rows = 0, cols = 0;
   std::vector<int> start{0}, column;
-  std::vector<double> value;
+  std::vector<Real> value;
 
   [[nodiscard]] std::size_t row_begin(int i) const {
     return static_cast<std::size_t>(start[static_cast<std::size_t>(i)]);
@@ -27,6 +28,32 @@ struct RowMatrix {
   }
 };
 
+/// The hierarchy is built in double precision; the V-cycle (smoothing, restriction and
+/// prolongation) runs on single-precision copies of its matrices. Those loops are limited by
+/// memory bandwidth, and the preconditioner needs no more than single precision: the conjugate
+/// gradients, the only place where the residual's accuracy matters, use the double-precision
+/// finest matrix.
+using RowMatrix = Rows<double>;
+using SingleRows = Rows<float>;
+
+SingleRows to_single(const RowMatrix& a) {
+  SingleRows s;
+  s.rows = a.rows, s.cols = a.cols;
+  s.start = a.start, s.column = a.column;
+  s.value.assign(a.value.begin(), a.value.end());
+  return s;
+}
+
+/// Single-precision copy that takes over `a`'s index arrays (`a` is left empty).
+SingleRows to_single(RowMatrix&& a) {
+  SingleRows s;
+  s.rows = a.rows, s.cols = a.cols;
+  s.value.assign(a.value.begin(), a.value.end());
+  s.start = std::move(a.start), s.column = std::move(a.column);
+  a = RowMatrix{};
+  return s;
+}
+
 inline std::size_t at(int i) {
   return static_cast<std::size_t>(i);
 }
@@ -35,12 +62,13 @@ inline std::size_t at(int i) {
 /// result independent of the number of threads.
 constexpr int block_rows = 4096;
 
-/// y = A·x
-void multiply(const RowMatrix& a, const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+/// y = A·x (in double precision whatever A's)
+template <class Real>
+void multiply(const Rows<Real>& a, const Eigen::VectorXd& x, Eigen::VectorXd& y) {
 #pragma omp parallel for schedule(static) if (a.rows >= 2 * block_rows)
   for (int i = 0; i < a.rows; ++i) {
     double sum = 0;
-    for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k) sum += a.value[k] * x[a.column[k]];
+    for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k) sum += double(a.value[k]) * x[a.column[k]];
     y[i] = sum;
   }
 }
@@ -111,11 +139,12 @@ RowMatrix product(const RowMatrix& a, const RowMatrix& b) {
 }
 
 struct Level {
-  RowMatrix matrix;                   // A (symmetric)
+  RowMatrix matrix;                   // A (symmetric); kept on the finest level only, once built
+  SingleRows single;                  // A in single precision, for the V-cycle
   Eigen::VectorXd diagonal;           // a_ii
   Eigen::VectorXd smoother_diagonal;  // see smoother_diagonal()
-  RowMatrix prolongation;             // P: this level's unknowns from the next level's
-  RowMatrix restriction;              // Pᵀ
+  SingleRows prolongation;            // P: this level's unknowns from the next level's
+  SingleRows restriction;             // Pᵀ
   mutable Eigen::VectorXd rhs, x, residual, previous;
 };
 
@@ -227,7 +256,7 @@ Eigen::VectorXd diagonal_of(const RowMatrix& a, bool& positive) {
 /// space-filling curve, so most of a row's entries lie in its own block. `from_zero`: x = 0
 /// before the sweep (the pre-smoothing), so no copy is needed.
 void gauss_seidel(const Level& level, bool forward, bool from_zero) {
-  const RowMatrix& a = level.matrix;
+  const SingleRows& a = level.single;
   const int n = a.rows;
   const int blocks = (n + block_rows - 1) / block_rows;
   if (blocks > 1) {
@@ -245,7 +274,7 @@ void gauss_seidel(const Level& level, bool forward, bool from_zero) {
       double residual = level.rhs[i];
       for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k) {
         const int j = a.column[k];
-        residual -= a.value[k] * (blocks == 1 || (j >= first && j < last) ? level.x[j] : level.previous[j]);
+        residual -= double(a.value[k]) * (blocks == 1 || (j >= first && j < last) ? level.x[j] : level.previous[j]);
       }
       level.x[i] += residual / level.smoother_diagonal[i];
     }
@@ -297,16 +326,16 @@ struct MultigridSolver::Hierarchy {
     }
     level.x.setZero();
     gauss_seidel(level, true, true);
-    multiply(level.matrix, level.x, level.residual);
+    multiply(level.single, level.x, level.residual);
     level.residual = level.rhs - level.residual;
     multiply(level.restriction, level.residual, levels[l + 1].rhs);
     cycle(l + 1);
     const Eigen::VectorXd& coarse_x = levels[l + 1].x;
-    const RowMatrix& p = level.prolongation;
+    const SingleRows& p = level.prolongation;
 #pragma omp parallel for schedule(static) if (p.rows >= 2 * block_rows)
     for (int i = 0; i < p.rows; ++i) {
       double sum = 0;
-      for (std::size_t k = p.row_begin(i); k < p.row_end(i); ++k) sum += p.value[k] * coarse_x[p.column[k]];
+      for (std::size_t k = p.row_begin(i); k < p.row_end(i); ++k) sum += double(p.value[k]) * coarse_x[p.column[k]];
       level.x[i] += sum;
     }
     gauss_seidel(level, false, false);
@@ -347,6 +376,7 @@ void MultigridSolver::compute(const SparseMatrix& matrix) {
       return;
     }
     finest.smoother_diagonal = smoother_diagonal(a, diagonal);
+    finest.single = to_single(a);
     finest.matrix = std::move(a);
     finest.diagonal = std::move(diagonal);
     h.reused = true;
@@ -380,10 +410,12 @@ void MultigridSolver::Hierarchy::build(RowMatrix finest_matrix, const Settings& 
     int count = 0;
     const auto owner = aggregate(level.matrix, level.diagonal, settings.strength_threshold, count);
     if (4 * count > 3 * n || count == 0) break;  // the coarsening stalls: solve this level directly
-    level.prolongation = smoothed_prolongation(level.matrix, level.diagonal, owner, count);
-    level.restriction = transpose(level.prolongation);
+    RowMatrix prolongation = smoothed_prolongation(level.matrix, level.diagonal, owner, count);
+    RowMatrix restriction = transpose(prolongation);
     Level next;
-    next.matrix = product(level.restriction, product(level.matrix, level.prolongation));
+    next.matrix = product(restriction, product(level.matrix, prolongation));
+    level.prolongation = to_single(std::move(prolongation));
+    level.restriction = to_single(std::move(restriction));
     levels.push_back(std::move(next));
   }
   // The coarsest level by a sparse LDLᵀ: small when the coarsening went well, and still exact
@@ -397,6 +429,9 @@ void MultigridSolver::Hierarchy::build(RowMatrix finest_matrix, const Settings& 
       entries.emplace_back(coarsest.column[k], i, coarsest.value[k]);
   coarse_matrix.setFromTriplets(entries.begin(), entries.end());
   coarse.compute(coarse_matrix);
+  // Only the conjugate gradients need a double-precision matrix, the finest.
+  for (std::size_t l = 0; l < levels.size(); ++l)
+    levels[l].single = l == 0 ? to_single(levels[l].matrix) : to_single(std::move(levels[l].matrix));
   if (coarse.info() != Eigen::Success || !(coarse.vectorD().array() > 0).all()) info = Eigen::NumericalIssue;
 }
 
@@ -435,7 +470,7 @@ int MultigridSolver::builds() const {
 
 std::vector<Eigen::Index> MultigridSolver::level_sizes() const {
   std::vector<Eigen::Index> sizes;
-  for (const auto& level : hierarchy_->levels) sizes.push_back(level.matrix.rows);
+  for (const auto& level : hierarchy_->levels) sizes.push_back(level.single.rows);
   return sizes;
 }
 

@@ -6,9 +6,14 @@
 #include <CGAL/Regular_triangulation_2.h>
 #include <CGAL/Regular_triangulation_face_base_2.h>
 #include <CGAL/Regular_triangulation_vertex_base_2.h>
+#include <CGAL/Spatial_sort_traits_adapter_2.h>
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
+#include <CGAL/property_map.h>
+#include <CGAL/spatial_sort.h>
 
 #include <algorithm>
+#include <cmath>
+#include <numeric>
 #include <utility>
 
 namespace sdot::detail {
@@ -22,19 +27,64 @@ using Triangulation = CGAL::Regular_triangulation_2<Kernel, CGAL::Triangulation_
 
 }  // namespace
 
-RegularTriangulation regular_triangulation(std::span<const Vec2> centers, std::span<const double> power_weights) {
+namespace {
+
+/// Whether consecutive centres are close, as along a space-filling curve (the solver orders its
+/// sites so): the walk of the incremental insertion from one site to the next is then short.
+/// The path length of n points in Hilbert order over a bounding box of area A is about
+/// sqrt(n·A); in random order it is about n·sqrt(A)/2.
+bool in_spatial_order(std::span<const Vec2> centers) {
+  const std::size_t n = centers.size();
+  if (n < 64) return false;
+  Vec2 low = centers[0], high = centers[0];
+  double path = 0;
+  for (std::size_t i = 1; i < n; ++i) {
+    low = low.cwiseMin(centers[i]), high = high.cwiseMax(centers[i]);
+    path += (centers[i] - centers[i - 1]).norm();
+  }
+  const Vec2 extent = high - low;
+  const double side = std::max(extent.x(), extent.y());
+  const double area = std::max(extent.x() * extent.y(), side * side / static_cast<double>(n));
+  return path <= 8 * std::sqrt(static_cast<double>(n) * area);
+}
+
+}  // namespace
+
+RegularTriangulation regular_triangulation(std::span<const Vec2> centers, std::span<const double> power_weights,
+                                           bool stop_at_hidden) {
   const std::size_t n = centers.size();
   // CGAL's weighted point (p, w) has power |v − p|² − w: the same convention as ours.
-  std::vector<std::pair<Triangulation::Weighted_point, int>> points;
+  std::vector<Triangulation::Weighted_point> points;
   points.reserve(n);
   for (std::size_t i = 0; i < n; ++i)
-    points.emplace_back(
-        Triangulation::Weighted_point(Kernel::Point_2(centers[i].x(), centers[i].y()), power_weights[i]),
-        static_cast<int>(i));
-  // The range constructor sorts the points along a Hilbert curve (spatial_sort) before inserting.
-  const Triangulation triangulation(points.begin(), points.end());
-
+    points.emplace_back(Kernel::Point_2(centers[i].x(), centers[i].y()), power_weights[i]);
+  // Insertion along a space-filling curve, each point located from the last one. Centres already
+  // in such an order (the solver's) are inserted as they come: CGAL's range insertion would sort
+  // them again at every Newton step.
+  std::vector<std::size_t> insertion(n);
+  std::iota(insertion.begin(), insertion.end(), std::size_t{0});
+  if (!in_spatial_order(centers)) {
+    std::vector<Kernel::Point_2> bare(n);
+    for (std::size_t i = 0; i < n; ++i) bare[i] = points[i].point();
+    const auto bare_map = CGAL::make_property_map(std::as_const(bare));
+    CGAL::spatial_sort(insertion.begin(), insertion.end(),
+                       CGAL::Spatial_sort_traits_adapter_2<Kernel, decltype(bare_map)>(bare_map));
+  }
   RegularTriangulation result;
+  Triangulation triangulation;
+  Triangulation::Face_handle hint;
+  for (const std::size_t i : insertion) {
+    const auto vertex = triangulation.insert(points[i], hint);
+    if (vertex == Triangulation::Vertex_handle()) continue;
+    vertex->info() = static_cast<int>(i);
+    hint = vertex->face();
+    // A point hidden by some of the points stays hidden by all of them: its cell is empty.
+    if (stop_at_hidden && triangulation.number_of_hidden_vertices() > 0) {
+      result.stopped_at_hidden = true;
+      return result;
+    }
+  }
+
   result.is_vertex.assign(n, 0);
   result.order.reserve(triangulation.number_of_vertices());
   for (auto v = triangulation.finite_vertices_begin(); v != triangulation.finite_vertices_end(); ++v) {

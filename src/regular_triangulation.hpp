@@ -16,8 +16,11 @@ namespace sdot::detail {
 struct RegularTriangulation {
   Adjacency neighbors;
   std::vector<char> is_vertex;
-  std::vector<int> order;  ///< the vertices in storage order, close to their insertion order (a Hilbert curve)
+  std::vector<int> order;          ///< the vertices in storage order, close to their insertion order (a Hilbert curve)
+  bool stopped_at_hidden = false;  ///< stopped early at a hidden site (only with `stop_at_hidden`): nothing else is set
 };
-RegularTriangulation regular_triangulation(std::span<const Vec2> centers, std::span<const double> power_weights);
+/// With `stop_at_hidden`, stops as soon as some site is hidden (its cell is empty).
+RegularTriangulation regular_triangulation(std::span<const Vec2> centers, std::span<const double> power_weights,
+                                           bool stop_at_hidden = false);
 
 }  // namespace sdot::detail
