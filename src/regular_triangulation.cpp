@@ -2,17 +2,22 @@
 // never used: cells are clipped from the neighbour lists in double precision).
 #include "regular_triangulation.hpp"
 
+#include <CGAL/Convex_hull_traits_adapter_2.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Regular_triangulation_2.h>
 #include <CGAL/Regular_triangulation_face_base_2.h>
 #include <CGAL/Regular_triangulation_vertex_base_2.h>
 #include <CGAL/Spatial_sort_traits_adapter_2.h>
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
+#include <CGAL/ch_akl_toussaint.h>
 #include <CGAL/property_map.h>
 #include <CGAL/spatial_sort.h>
 
 #include <algorithm>
+#include <array>
+#include <atomic>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <utility>
 
@@ -25,9 +30,9 @@ using VertexBase =
 using FaceBase = CGAL::Regular_triangulation_face_base_2<Kernel>;
 using Triangulation = CGAL::Regular_triangulation_2<Kernel, CGAL::Triangulation_data_structure_2<VertexBase, FaceBase>>;
 
-}  // namespace
-
-namespace {
+inline std::size_t at(int i) {
+  return static_cast<std::size_t>(i);
+}
 
 /// Whether consecutive centres are close, as along a space-filling curve (the solver orders its
 /// sites so): the walk of the incremental insertion from one site to the next is then short.
@@ -48,68 +53,374 @@ bool in_spatial_order(std::span<const Vec2> centers) {
   return path <= 8 * std::sqrt(static_cast<double>(n) * area);
 }
 
+/// Inserts the sites `members` (indices into `centers`) into `triangulation` along a
+/// space-filling curve, each located from the last one. Members already in such an order (the
+/// solver's sites are) are inserted as they come: CGAL's range insertion would sort them again at
+/// every Newton step. False when it stopped at a hidden site (only with `stop_at_hidden`), or
+/// because another part raised `stop`.
+bool insert_sites(Triangulation& triangulation, std::span<const Vec2> centers, std::span<const double> power_weights,
+                  std::vector<int> members, bool stop_at_hidden, std::atomic<bool>& stop) {
+  std::vector<Vec2> member_centers(members.size());
+  for (std::size_t k = 0; k < members.size(); ++k) member_centers[k] = centers[at(members[k])];
+  if (!in_spatial_order(member_centers)) {
+    std::vector<Kernel::Point_2> bare(members.size());
+    for (std::size_t k = 0; k < members.size(); ++k)
+      bare[k] = Kernel::Point_2(member_centers[k].x(), member_centers[k].y());
+    std::vector<std::size_t> insertion(members.size());
+    std::iota(insertion.begin(), insertion.end(), std::size_t{0});
+    const auto bare_map = CGAL::make_property_map(std::as_const(bare));
+    CGAL::spatial_sort(insertion.begin(), insertion.end(),
+                       CGAL::Spatial_sort_traits_adapter_2<Kernel, decltype(bare_map)>(bare_map));
+    std::vector<int> sorted(members.size());
+    for (std::size_t k = 0; k < members.size(); ++k) sorted[k] = members[insertion[k]];
+    members = std::move(sorted);
+  }
+  Triangulation::Face_handle hint;
+  std::size_t inserted = 0;
+  for (const int i : members) {
+    // CGAL's weighted point (p, w) has power |v − p|² − w: the same convention as ours.
+    const auto vertex = triangulation.insert(
+        Triangulation::Weighted_point(Kernel::Point_2(centers[at(i)].x(), centers[at(i)].y()), power_weights[at(i)]),
+        hint);
+    if (vertex == Triangulation::Vertex_handle()) continue;
+    vertex->info() = i;
+    hint = vertex->face();
+    if (!stop_at_hidden) continue;
+    // A point hidden by some of the points stays hidden by all of them: its cell is empty.
+    if (triangulation.number_of_hidden_vertices() > 0) {
+      stop = true;
+      return false;
+    }
+    if (++inserted % 1024 == 0 && stop.load(std::memory_order_relaxed)) return false;
+  }
+  return true;
+}
+
+/// Adds the edges of `triangulation` at the sites that `owns` to the adjacency: counting
+/// (`fill` null: adjacency.offsets[i + 1] += degree) or filling (at fill[i]).
+template <class Owns>
+void add_edges(const Triangulation& triangulation, Owns&& owns, Adjacency& adjacency, std::vector<int>* fill) {
+  for (auto e = triangulation.finite_edges_begin(); e != triangulation.finite_edges_end(); ++e) {
+    const auto& face = e->first;
+    const int a = face->vertex(face->cw(e->second))->info(), b = face->vertex(face->ccw(e->second))->info();
+    for (const auto& [from, to] : {std::pair{a, b}, std::pair{b, a}}) {
+      if (!owns(from)) continue;
+      if (fill)
+        adjacency.neighbors[at((*fill)[at(from)]++)] = to;
+      else
+        ++adjacency.offsets[at(from) + 1];
+    }
+  }
+}
+
+/// The sites that one half leaves out, in a grid of bins, each with the box and the largest
+/// weight of its sites: a triangle is regular with respect to all of them when it is with
+/// respect to each bin's bound, or else to each site of the bins it cannot rule out.
+struct LeftOut {
+  Vec2 low, high, extent;  // the sites' box
+  double max_weight = -std::numeric_limits<double>::infinity();
+  int columns = 1, rows = 1;
+  std::vector<int> start, sites;  // the bins' sites, bin by bin
+  std::vector<Vec2> bin_low, bin_high;
+  std::vector<double> bin_weight;
+
+  [[nodiscard]] bool empty() const { return sites.empty(); }
+
+  void build(std::span<const Vec2> centers, std::span<const double> weights, std::vector<int> members) {
+    constexpr double infinity = std::numeric_limits<double>::infinity();
+    low = Vec2(infinity, infinity), high = -low;
+    for (int i : members) {
+      low = low.cwiseMin(centers[at(i)]), high = high.cwiseMax(centers[at(i)]);
+      max_weight = std::max(max_weight, weights[at(i)]);
+    }
+    if (members.empty()) return;
+    // About 16 sites per bin.
+    const double side = std::sqrt(16 * std::max((high - low).prod(), 1e-300) / static_cast<double>(members.size()));
+    extent = (high - low).cwiseMax(1e-300);
+    columns = std::clamp(static_cast<int>(extent.x() / side) + 1, 1, 4096);
+    rows = std::clamp(static_cast<int>(extent.y() / side) + 1, 1, 4096);
+    const auto bins = at(columns * rows);
+    auto bin_of = [&](int i) {
+      const Vec2 t = (centers[at(i)] - low).cwiseQuotient(extent);
+      const int column = std::min(columns - 1, static_cast<int>(t.x() * columns));
+      const int row = std::min(rows - 1, static_cast<int>(t.y() * rows));
+      return at(row * columns + column);
+    };
+    start.assign(bins + 1, 0);
+    for (int i : members) ++start[bin_of(i) + 1];
+    for (std::size_t b = 0; b < bins; ++b) start[b + 1] += start[b];
+    sites.resize(members.size());
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    bin_low.assign(bins, Vec2(infinity, infinity));
+    bin_high.assign(bins, Vec2(-infinity, -infinity));
+    bin_weight.assign(bins, -infinity);
+    for (int i : members) {
+      const auto b = bin_of(i);
+      sites[at(fill[b]++)] = i;
+      bin_low[b] = bin_low[b].cwiseMin(centers[at(i)]), bin_high[b] = bin_high[b].cwiseMax(centers[at(i)]);
+      bin_weight[b] = std::max(bin_weight[b], weights[at(i)]);
+    }
+  }
+};
+
+/// Squared distance from `point` to the box [low, high].
+double box_distance2(const Vec2& point, const Vec2& low, const Vec2& high) {
+  return (low - point).cwiseMax(point - high).cwiseMax(0.0).squaredNorm();
+}
+
+/// Sites in two halves, split at the median abscissa, for two triangulations that can run in
+/// parallel. Each half is triangulated with the other half's sites within `margin` of the split
+/// and those near the set's boundary (ghosts). A site's neighbours are right when every triangle
+/// at it is regular with respect to the sites left out too.
+struct Split {
+  double median = 0, margin = 0;
+  std::array<LeftOut, 2> left_out;   // per half
+  std::vector<char> half;            // per site: 0 left of the median, 1 right
+  std::vector<char> boundary_ghost;  // per site: bit h set when half h takes it in as a ghost
+};
+
+/// Sites from which the diagram is built as two halves; below it, one triangulation.
+constexpr std::size_t parallel_size = 20000;
+
+bool make_split(std::span<const Vec2> centers, std::span<const double> power_weights, Split& split) {
+  const std::size_t n = centers.size();
+  std::vector<double> xs(n);
+  Vec2 low = centers[0], high = centers[0];
+  for (std::size_t i = 0; i < n; ++i) {
+    xs[i] = centers[i].x();
+    low = low.cwiseMin(centers[i]), high = high.cwiseMax(centers[i]);
+  }
+  std::nth_element(xs.begin(), xs.begin() + static_cast<std::ptrdiff_t>(n / 2), xs.end());
+  split.median = xs[n / 2];
+  const Vec2 extent = high - low;
+  if (!(extent.x() > 0 && extent.y() > 0) || !std::isfinite(extent.x() + extent.y())) return false;
+  // A typical cell's diameter is about sqrt(area / n); the margin holds a few rows of cells.
+  split.margin = 8 * std::sqrt(extent.x() * extent.y() / static_cast<double>(n));
+  split.half.resize(n);
+  std::array<std::size_t, 2> count{};
+  std::array<std::vector<int>, 2> left_out;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x = centers[i].x();
+    split.half[i] = x < split.median ? 0 : 1;
+    ++count[at(split.half[i])];
+    if (x >= split.median + split.margin) left_out[0].push_back(static_cast<int>(i));
+    if (x < split.median - split.margin) left_out[1].push_back(static_cast<int>(i));
+  }
+  if (count[0] < n / 4 || count[1] < n / 4) return false;  // many equal abscissae
+  // Sites near the boundary of the set that a half would leave out join it as ghosts: the
+  // triangles along the convex hull are slivers whose circles reach far along the boundary
+  // (radius 172 at 10⁵ sites in the unit square). "Near" is: in a bin of side 4·sqrt(area/n)
+  // (about 16 sites) next to an empty bin or to the grid's edge, or next to such a bin. The
+  // extreme points of what a half leaves out join it too: its triangulation then has the convex
+  // hull of all the sites.
+  const double side = 4 * std::sqrt(extent.x() * extent.y() / static_cast<double>(n));
+  const int columns = std::clamp(static_cast<int>(extent.x() / side) + 1, 1, 8192);
+  const int rows = std::clamp(static_cast<int>(extent.y() / side) + 1, 1, 8192);
+  auto bin_of = [&](std::size_t i) {
+    const Vec2 t = (centers[i] - low).cwiseQuotient(extent);
+    return std::pair{std::min(columns - 1, static_cast<int>(t.x() * columns)),
+                     std::min(rows - 1, static_cast<int>(t.y() * rows))};
+  };
+  std::vector<int> bin_count(at(columns * rows), 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto [column, row] = bin_of(i);
+    ++bin_count[at(row * columns + column)];
+  }
+  auto any_neighbor = [&](int column, int row, auto&& test) {
+    for (int dr = -1; dr <= 1; ++dr)
+      for (int dc = -1; dc <= 1; ++dc) {
+        const int c = column + dc, r = row + dr;
+        if (test(c, r)) return true;
+      }
+    return false;
+  };
+  std::vector<char> edge(bin_count.size(), 0), near_edge(bin_count.size(), 0);
+  for (int row = 0; row < rows; ++row)
+    for (int column = 0; column < columns; ++column)
+      edge[at(row * columns + column)] = any_neighbor(column, row, [&](int c, int r) {
+        return c < 0 || r < 0 || c >= columns || r >= rows || bin_count[at(r * columns + c)] == 0;
+      });
+  for (int row = 0; row < rows; ++row)
+    for (int column = 0; column < columns; ++column)
+      near_edge[at(row * columns + column)] = any_neighbor(column, row, [&](int c, int r) {
+        return c >= 0 && r >= 0 && c < columns && r < rows && edge[at(r * columns + c)];
+      });
+  std::vector<Kernel::Point_2> points(n);
+  for (std::size_t i = 0; i < n; ++i) points[i] = Kernel::Point_2(centers[i].x(), centers[i].y());
+  const auto point_map = CGAL::make_property_map(std::as_const(points));
+  split.boundary_ghost.assign(n, 0);
+  for (std::size_t h = 0; h < 2; ++h) {
+    std::vector<int> hull;
+    CGAL::ch_akl_toussaint(left_out[h].begin(), left_out[h].end(), std::back_inserter(hull),
+                           CGAL::Convex_hull_traits_adapter_2<Kernel, decltype(point_map)>(point_map));
+    for (int i : hull) split.boundary_ghost[at(i)] |= static_cast<char>(1 << h);
+    for (int i : left_out[h]) {
+      const auto [column, row] = bin_of(at(i));
+      if (near_edge[at(row * columns + column)]) split.boundary_ghost[at(i)] |= static_cast<char>(1 << h);
+    }
+    std::erase_if(left_out[h], [&](int i) { return (split.boundary_ghost[at(i)] >> h & 1) != 0; });
+    split.left_out[h].build(centers, power_weights, std::move(left_out[h]));
+  }
+  return true;
+}
+
+/// Whether every finite triangle of `triangulation` at a site of half `h` is regular with respect
+/// to the sites the half left out. Conservative: a triangle too close to call fails the check.
+bool regular_at_half(const Triangulation& triangulation, std::span<const Vec2> centers,
+                     std::span<const double> power_weights, const Split& split, int h) {
+  const LeftOut& left_out = split.left_out[at(h)];
+  if (left_out.empty()) return true;
+  for (auto f = triangulation.finite_faces_begin(); f != triangulation.finite_faces_end(); ++f) {
+    if (split.half[at(f->vertex(0)->info())] != h && split.half[at(f->vertex(1)->info())] != h &&
+        split.half[at(f->vertex(2)->info())] != h)
+      continue;
+    // The power centre c of the triangle (a, b, c) and its power ρ = |c − a|² − w_a, with
+    // u = c − a from 2⟨u, b − a⟩ = |b − a|² − (w_b − w_a) and the same for c.
+    const auto& pa = f->vertex(0)->point();
+    const auto& pb = f->vertex(1)->point();
+    const auto& pc = f->vertex(2)->point();
+    const Vec2 a(pa.x(), pa.y());
+    const Vec2 db = Vec2(pb.x(), pb.y()) - a, dc = Vec2(pc.x(), pc.y()) - a;
+    const double rb = db.squaredNorm() - (pb.weight() - pa.weight());
+    const double rc = dc.squaredNorm() - (pc.weight() - pa.weight());
+    const double det = 2 * (db.x() * dc.y() - db.y() * dc.x());
+    const Vec2 u((rb * dc.y() - rc * db.y()) / det, (db.x() * rc - dc.x() * rb) / det);
+    if (!std::isfinite(u.x()) || !std::isfinite(u.y())) return false;  // a flat triangle
+    const Vec2 center = a + u;
+    const double power = u.squaredNorm() - pa.weight();
+    // A left-out site s is harmless when |c − s|² − w_s ≥ ρ, with room for the round-off of c.
+    auto harmless = [&](double distance2, double weight) {
+      const double room = 1e-9 * (distance2 + u.squaredNorm() + std::abs(pa.weight()) + std::abs(weight));
+      return distance2 - weight >= power + room;
+    };
+    if (harmless(box_distance2(center, left_out.low, left_out.high), left_out.max_weight)) continue;
+    // Too close to call from the box of all left-out sites (the huge circles of slivers along
+    // the hull come here): bin by bin, then site by site, in the bins within sqrt(ρ + max weight)
+    // of c (no site farther away can be in conflict).
+    const double reach = std::sqrt(std::max(0.0, 2 * (power + left_out.max_weight)));
+    auto bin_range = [&](double from, double to, double low, double extent, int count) {
+      auto index = [&](double v) {
+        return static_cast<int>(std::clamp(std::floor((v - low) / extent * count), 0.0, count - 1.0));
+      };
+      return std::pair{index(from), index(to)};
+    };
+    const auto [first_column, last_column] =
+        bin_range(center.x() - reach, center.x() + reach, left_out.low.x(), left_out.extent.x(), left_out.columns);
+    const auto [first_row, last_row] =
+        bin_range(center.y() - reach, center.y() + reach, left_out.low.y(), left_out.extent.y(), left_out.rows);
+    for (int row = first_row; row <= last_row; ++row)
+      for (int column = first_column; column <= last_column; ++column) {
+        const auto b = at(row * left_out.columns + column);
+        if (left_out.start[b] == left_out.start[b + 1] ||
+            harmless(box_distance2(center, left_out.bin_low[b], left_out.bin_high[b]), left_out.bin_weight[b]))
+          continue;
+        for (auto k = at(left_out.start[b]); k < at(left_out.start[b + 1]); ++k) {
+          const int s_index = left_out.sites[k];
+          if (!harmless((u - (centers[at(s_index)] - a)).squaredNorm(), power_weights[at(s_index)])) return false;
+        }
+      }
+  }
+  return true;
+}
+
+/// The serial triangulation of all sites.
+RegularTriangulation whole_triangulation(std::span<const Vec2> centers, std::span<const double> power_weights,
+                                         bool stop_at_hidden) {
+  const std::size_t n = centers.size();
+  RegularTriangulation result;
+  std::vector<int> members(n);
+  std::iota(members.begin(), members.end(), 0);
+  std::atomic<bool> stop{false};
+  Triangulation triangulation;
+  if (!insert_sites(triangulation, centers, power_weights, std::move(members), stop_at_hidden, stop)) {
+    result.stopped_at_hidden = true;
+    return result;
+  }
+  result.is_vertex.assign(n, 0);
+  result.order.reserve(triangulation.number_of_vertices());
+  for (auto v = triangulation.finite_vertices_begin(); v != triangulation.finite_vertices_end(); ++v) {
+    result.is_vertex[at(v->info())] = 1;
+    result.order.push_back(v->info());
+  }
+  Adjacency& adjacency = result.neighbors;
+  adjacency.offsets.assign(n + 1, 0);
+  const auto everyone = [](int) { return true; };
+  add_edges(triangulation, everyone, adjacency, nullptr);
+  for (std::size_t i = 0; i < n; ++i) adjacency.offsets[i + 1] += adjacency.offsets[i];
+  adjacency.neighbors.resize(at(adjacency.offsets[n]));
+  std::vector<int> fill(adjacency.offsets.begin(), adjacency.offsets.end() - 1);
+  add_edges(triangulation, everyone, adjacency, &fill);
+  return result;
+}
+
+/// The two halves of `split` triangulated side by side (one thread each when there are two);
+/// false when a half's triangles could not be certified (the caller then triangulates the whole).
+bool split_triangulation(std::span<const Vec2> centers, std::span<const double> power_weights, bool stop_at_hidden,
+                         const Split& split, RegularTriangulation& result) {
+  const std::size_t n = centers.size();
+  std::array<Triangulation, 2> halves;
+  std::array<char, 2> certified{};
+  std::atomic<bool> stop{false};
+#pragma omp parallel for schedule(static, 1) num_threads(2)
+  for (int h = 0; h < 2; ++h) {
+    std::vector<int> members;
+    members.reserve(n / 2 + n / 16);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double x = centers[i].x();
+      const bool ghost = h == 0 ? x < split.median + split.margin : x >= split.median - split.margin;
+      if (split.half[i] == h || ghost || (split.boundary_ghost[i] >> h & 1)) members.push_back(static_cast<int>(i));
+    }
+    Triangulation& triangulation = halves[at(h)];
+    certified[at(h)] = insert_sites(triangulation, centers, power_weights, std::move(members), stop_at_hidden, stop) &&
+                       regular_at_half(triangulation, centers, power_weights, split, h);
+  }
+  if (stop) {
+    result.stopped_at_hidden = true;
+    return true;
+  }
+  if (!certified[0] || !certified[1]) return false;
+  result.is_vertex.assign(n, 0);
+  for (int h = 0; h < 2; ++h)
+    for (auto v = halves[at(h)].finite_vertices_begin(); v != halves[at(h)].finite_vertices_end(); ++v)
+      if (split.half[at(v->info())] == h) {
+        result.is_vertex[at(v->info())] = 1;
+        result.order.push_back(v->info());
+      }
+  Adjacency& adjacency = result.neighbors;
+  adjacency.offsets.assign(n + 1, 0);
+  for (int h = 0; h < 2; ++h)
+    add_edges(
+        halves[at(h)], [&](int i) { return split.half[at(i)] == h; }, adjacency, nullptr);
+  for (std::size_t i = 0; i < n; ++i) adjacency.offsets[i + 1] += adjacency.offsets[i];
+  adjacency.neighbors.resize(at(adjacency.offsets[n]));
+  std::vector<int> fill(adjacency.offsets.begin(), adjacency.offsets.end() - 1);
+  for (int h = 0; h < 2; ++h)
+    add_edges(
+        halves[at(h)], [&](int i) { return split.half[at(i)] == h; }, adjacency, &fill);
+  return true;
+}
+
 }  // namespace
 
 RegularTriangulation regular_triangulation(std::span<const Vec2> centers, std::span<const double> power_weights,
                                            bool stop_at_hidden) {
   const std::size_t n = centers.size();
-  // CGAL's weighted point (p, w) has power |v − p|² − w: the same convention as ours.
-  std::vector<Triangulation::Weighted_point> points;
-  points.reserve(n);
-  for (std::size_t i = 0; i < n; ++i)
-    points.emplace_back(Kernel::Point_2(centers[i].x(), centers[i].y()), power_weights[i]);
-  // Insertion along a space-filling curve, each point located from the last one. Centres already
-  // in such an order (the solver's) are inserted as they come: CGAL's range insertion would sort
-  // them again at every Newton step.
-  std::vector<std::size_t> insertion(n);
-  std::iota(insertion.begin(), insertion.end(), std::size_t{0});
-  if (!in_spatial_order(centers)) {
-    std::vector<Kernel::Point_2> bare(n);
-    for (std::size_t i = 0; i < n; ++i) bare[i] = points[i].point();
-    const auto bare_map = CGAL::make_property_map(std::as_const(bare));
-    CGAL::spatial_sort(insertion.begin(), insertion.end(),
-                       CGAL::Spatial_sort_traits_adapter_2<Kernel, decltype(bare_map)>(bare_map));
-  }
   RegularTriangulation result;
-  Triangulation triangulation;
-  Triangulation::Face_handle hint;
-  for (const std::size_t i : insertion) {
-    const auto vertex = triangulation.insert(points[i], hint);
-    if (vertex == Triangulation::Vertex_handle()) continue;
-    vertex->info() = static_cast<int>(i);
-    hint = vertex->face();
-    // A point hidden by some of the points stays hidden by all of them: its cell is empty.
-    if (stop_at_hidden && triangulation.number_of_hidden_vertices() > 0) {
-      result.stopped_at_hidden = true;
-      return result;
-    }
+  // Large sets are triangulated as two halves at once (both cores), certified exact; the split
+  // does not depend on the number of threads, so neither do the cells.
+  Split split;
+  bool done = false;
+  if (n >= parallel_size && make_split(centers, power_weights, split)) {
+    done = split_triangulation(centers, power_weights, stop_at_hidden, split, result);
+    if (!done) result = RegularTriangulation{};
   }
-
-  result.is_vertex.assign(n, 0);
-  result.order.reserve(triangulation.number_of_vertices());
-  for (auto v = triangulation.finite_vertices_begin(); v != triangulation.finite_vertices_end(); ++v) {
-    result.is_vertex[static_cast<std::size_t>(v->info())] = 1;
-    result.order.push_back(v->info());
-  }
-  Adjacency& adjacency = result.neighbors;
-  adjacency.offsets.assign(n + 1, 0);
-  for (auto e = triangulation.finite_edges_begin(); e != triangulation.finite_edges_end(); ++e) {
-    const auto& face = e->first;
-    ++adjacency.offsets[static_cast<std::size_t>(face->vertex(face->cw(e->second))->info()) + 1];
-    ++adjacency.offsets[static_cast<std::size_t>(face->vertex(face->ccw(e->second))->info()) + 1];
-  }
-  for (std::size_t i = 0; i < n; ++i) adjacency.offsets[i + 1] += adjacency.offsets[i];
-  adjacency.neighbors.resize(static_cast<std::size_t>(adjacency.offsets[n]));
-  std::vector<int> fill(adjacency.offsets.begin(), adjacency.offsets.end() - 1);
-  for (auto e = triangulation.finite_edges_begin(); e != triangulation.finite_edges_end(); ++e) {
-    const auto& face = e->first;
-    const int a = face->vertex(face->cw(e->second))->info(), b = face->vertex(face->ccw(e->second))->info();
-    adjacency.neighbors[static_cast<std::size_t>(fill[static_cast<std::size_t>(a)]++)] = b;
-    adjacency.neighbors[static_cast<std::size_t>(fill[static_cast<std::size_t>(b)]++)] = a;
-  }
+  if (!done) result = whole_triangulation(centers, power_weights, stop_at_hidden);
+  if (result.stopped_at_hidden) return result;
   // CGAL stores the faces in an order that depends on memory addresses (its internal sets are
   // keyed by handles), so the edges come in a different order from run to run. Sorted lists make
   // the clipping order, and so the cells to the last bit, the same at every run.
+  Adjacency& adjacency = result.neighbors;
+#pragma omp parallel for schedule(static, 4096)
   for (std::size_t i = 0; i < n; ++i)
     std::sort(adjacency.neighbors.begin() + adjacency.offsets[i],
               adjacency.neighbors.begin() + adjacency.offsets[i + 1]);

@@ -1,5 +1,6 @@
 // The shared cell builder against brute force (clipping by every other site).
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <algorithm>
 #include <cmath>
@@ -230,6 +231,61 @@ TEST(PowerDiagram, SameCellsToTheLastBitAtEveryRun) {
         ASSERT_EQ(again[i].neighbors, first[i].neighbors) << name(method) << ", run " << run << ", cell " << i;
       }
     }
+  }
+}
+
+// From 20,000 sites the triangulation is built as two halves side by side, each certified against
+// the sites it leaves out; a half that cannot be certified falls back to one triangulation. Both
+// must give the kd-tree builder's cells, whatever the number of threads.
+TEST(PowerDiagram, SplitTriangulationMatchesTheKdTree) {
+  if (!has_regular_triangulation()) GTEST_SKIP() << "no regular triangulation in this build";
+  std::mt19937_64 random(23);
+  std::uniform_real_distribution<double> uniform(0, 1);
+  const auto square = ConvexPolygon::rectangle(0, 0, 1, 1);
+  const std::size_t n = 30000;
+  std::vector<Vec2> centers(n);
+  std::vector<double> weights(n);
+  for (auto& c : centers) c = Vec2(uniform(random), uniform(random));
+  for (auto& w : weights) w = 2e-5 * uniform(random);  // some cells a few times others
+  std::vector<double> wide = weights;                  // three cells across the split, wider than its margin
+  for (int k = 0; k < 3; ++k)
+    wide[static_cast<std::size_t>(k)] = 0.02, centers[static_cast<std::size_t>(k)] = Vec2(0.5, 0.2 + 0.3 * k);
+  for (const auto& [case_weights, what] : {std::pair{&weights, "certified halves"}, std::pair{&wide, "fallback"}}) {
+    const auto expected = build_power_diagram(centers, *case_weights, square, {}, false, PowerDiagramMethod::kd_tree);
+    std::vector<ChartCell> by_threads[2];
+    for (int threads : {1, 2}) {
+      omp_set_num_threads(threads);
+      by_threads[threads - 1] =
+          build_power_diagram(centers, *case_weights, square, {}, false, PowerDiagramMethod::regular_triangulation);
+    }
+    omp_set_num_threads(omp_get_num_procs());
+    double total = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto& cell = by_threads[1][i];
+      ASSERT_NEAR(area(cell), area(expected[i]), 1e-14) << what << ", cell " << i;
+      ASSERT_EQ(long_edge_neighbors(cell), long_edge_neighbors(expected[i])) << what << ", cell " << i;
+      ASSERT_EQ(cell.vertices, by_threads[0][i].vertices) << what << ": 1 and 2 threads differ at cell " << i;
+      ASSERT_EQ(cell.neighbors, by_threads[0][i].neighbors) << what << ": 1 and 2 threads differ at cell " << i;
+      total += area(cell);
+    }
+    EXPECT_NEAR(total, 1.0, 1e-12) << what;
+  }
+  {  // a 160 × 160 grid with equal weights (cocircular everywhere) straddles the split exactly
+    const int k = 160;
+    std::vector<Vec2> grid;
+    for (int i = 0; i < k; ++i)
+      for (int j = 0; j < k; ++j) grid.emplace_back((i + 0.5) / k, (j + 0.5) / k);
+    const auto cells = build_power_diagram(grid, std::vector<double>(grid.size(), 0.0), square, {}, false,
+                                           PowerDiagramMethod::regular_triangulation);
+    for (std::size_t i = 0; i < cells.size(); ++i)
+      ASSERT_NEAR(area(cells[i]), 1.0 / (k * k), 1e-15) << "grid cell " << i;
+  }
+  {  // a step that hides a site on either side of the split is seen as such
+    std::vector<double> hiding = weights;
+    hiding[n - 1] = -0.01;
+    const auto cells =
+        build_power_diagram(centers, hiding, square, {}, true, PowerDiagramMethod::regular_triangulation);
+    EXPECT_TRUE(std::any_of(cells.begin(), cells.end(), [](const ChartCell& cell) { return cell.empty(); }));
   }
 }
 
