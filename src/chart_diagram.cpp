@@ -495,8 +495,8 @@ std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> cent
                                                       std::span<const double> power_weight, const ConvexPolygon& domain,
                                                       bool stop_at_empty_cell) {
   const std::size_t n = centers.size();
-  std::vector<ChartCell> cells(n);
   const auto triangulation = detail::regular_triangulation(centers, power_weight, stop_at_empty_cell);
+  std::vector<ChartCell> cells(n);  // after the triangulation, whose memory is freed by then
   // A hidden site has an empty cell: a line search rejects the step without the other cells.
   if (triangulation.stopped_at_hidden ||
       (stop_at_empty_cell &&

@@ -4,6 +4,9 @@
 #include <filesystem>
 #include <iostream>
 #include <sstream>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include "common.hpp"
 #include "registry.hpp"
@@ -164,6 +167,13 @@ int run_demo(const sdot::cli::Registry& registry, int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+#if defined(__GLIBC__)
+  // Arrays of 1 MB and more come straight from the system and go back to it when freed. glibc
+  // otherwise raises that threshold to the size of each large array freed (up to 32 MB), and the
+  // vectors and triangulations rebuilt at every Newton step then fragment the heap: plane, 10⁶
+  // sites, peak RSS about 1050 MB against 930 MB for the same data.
+  mallopt(M_MMAP_THRESHOLD, 1 << 20);
+#endif
   sdot::cli::Registry registry;
   sdot::cli::register_geometries(registry);
   try {
