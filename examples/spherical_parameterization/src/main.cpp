@@ -218,14 +218,14 @@ int main(int argc, char** argv) {
   try {
     auto t = std::chrono::steady_clock::now();
     ReadInfo info;
-    const Mesh raw = read_mesh(input, &info, input_format);
+    Mesh raw = read_mesh(input, &info, input_format);
     const double read_s = since(t);
     const std::vector<double> factors =
         weights_path.empty() ? std::vector<double>{} : read_factors(weights_path, raw.vertices.size());
     options.progress = progress;
     // The initial map's metrics appear only in the report and the histogram.
     const bool want_initial = !report_path.empty() || !svg_path.empty();
-    RunResult run = run_parameterization(raw, info, options, factors, want_initial, input);
+    RunResult run = run_parameterization(std::move(raw), info, options, factors, want_initial, input);
     // Bad input is one line: the fatal defects, each naming its first instance.
     std::string fatal;
     for (const auto& d : run.report["input_statistics"]["defects"]) {
