@@ -932,6 +932,7 @@ OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::
   std::vector<double> mu(nv, 1e-3);  // per-vertex Levenberg damping
   // Active set: a vertex is revisited while it or a neighbour moved noticeably.
   std::vector<char> active(nv, 1), next_active(nv, 0);
+  if (options.start_active.size() == nv) active = options.start_active;
   // Gauss–Seidel, one colour class at a time: vertices of one colour share no face, so their
   // moves are independent and run in parallel. Small classes run serially: a parallel region per
   // class and sweep costs more than it saves there, and much more when the machine is loaded.

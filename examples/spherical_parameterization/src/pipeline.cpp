@@ -248,6 +248,24 @@ std::string separate_clusters(std::vector<Vec3>& s, const std::vector<double>& m
 }
 #endif
 
+/// One flag per vertex: within `rings` edges of a vertex of a flipped face.
+std::vector<char> near_flipped_faces(const Mesh& mesh, const Topology& topo, const std::vector<Vec3>& s, int rings) {
+  std::vector<char> near(s.size(), 0);
+  std::vector<int> front;
+  for (const auto& f : mesh.faces)
+    if (s[u(f[0])].dot(s[u(f[1])].cross(s[u(f[2])])) <= 0)
+      for (int v : f)
+        if (!near[u(v)]) near[u(v)] = 1, front.push_back(v);
+  for (int ring = 0; ring < rings; ++ring) {
+    std::vector<int> next;
+    for (int v : front)
+      for (int k = topo.nbr_offsets[u(v)]; k < topo.nbr_offsets[u(v) + 1]; ++k)
+        if (!near[u(topo.nbrs[u(k)])]) near[u(topo.nbrs[u(k)])] = 1, next.push_back(topo.nbrs[u(k)]);
+    front.swap(next);
+  }
+  return near;
+}
+
 double min_edge_length(const Mesh& mesh, const std::vector<Vec3>& s) {
   double m = 1e300;
   for (const auto& f : mesh.faces)
@@ -386,11 +404,18 @@ PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
       uo.max_sweeps = 10;
       uo.activity_threshold = 1e-4;
       std::size_t flips = count_flips(mesh, s), previous_flips = flips;
+      // Few flipped faces in a large mesh: each chunk starts from the vertices within 4 rings of
+      // them (a move still wakes its neighbours) instead of from every vertex, and the flip-free
+      // optimization (step 5) does the global area work (brain_48k Loop-subdivided twice, 775,762
+      // vertices, 14 flipped faces after OT: untangling 3.83 s -> 0.29 s, the whole map 28.3 s ->
+      // 20.1 s, final area mean|d| 0.0034 -> 0.0043).
+      const bool local_untangling = mesh.vertices.size() >= local_untangling_from && flips * 1000 <= mesh.faces.size();
       int stalled_levels = 0;
       for (double eps : {1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5}) {
         uo.regularization = eps;
         int sweeps = 0;
         for (int chunk = 0; chunk < 6 && flips > 0; ++chunk) {
+          if (local_untangling) uo.start_active = near_flipped_faces(mesh, topo, s, 4);
           sweeps += optimize_area(mesh, topo, targets, s, uo).sweeps;
           flips = count_flips(mesh, s);
         }
