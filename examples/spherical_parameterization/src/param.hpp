@@ -102,6 +102,8 @@ struct OptimizeOptions {
   /// the vertex's own energy) halved the optimization's time on bunny_35k and igea_134k for area
   /// mean|d| 0.0157 and 0.0044 instead of 0.0148 and 0.0033.
   double activity_threshold = 1e-2;
+  /// The vertices active in the first sweep (one flag per vertex); empty: all of them.
+  std::vector<char> start_active;
 };
 struct OptimizeResult {
   int sweeps = 0;

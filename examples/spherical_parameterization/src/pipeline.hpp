@@ -12,6 +12,10 @@
 
 namespace sphparam {
 
+/// From this many vertices, and with at most one flipped face in 1000 after OT, the regularised
+/// untangling starts from the flipped faces' neighbourhoods only.
+inline constexpr std::size_t local_untangling_from = 500000;
+
 struct PipelineOptions {
   /// Dirac refinement levels (each level splits every triangle in 4); −1 chooses by size.
   int refine = 0;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <numeric>
 #include <utility>
 
 namespace sphparam {
@@ -23,22 +24,31 @@ json metrics_json(const Metrics& m) {
 RunResult run_parameterization(const Mesh& raw, const ReadInfo& info, PipelineOptions options,
                                const std::vector<double>& vertex_factors, bool initial_metrics,
                                const std::string& input_name) {
+  return run_parameterization(Mesh(raw), info, std::move(options), vertex_factors, initial_metrics, input_name);
+}
+
+RunResult run_parameterization(Mesh&& raw, const ReadInfo& info, PipelineOptions options,
+                               const std::vector<double>& vertex_factors, bool initial_metrics,
+                               const std::string& input_name) {
   RunResult result;
   json& report = result.report;
   report["input"] = input_name;
+  // One copy of the mesh all along (2 M vertices: 100 MB a copy): taken over from the caller,
+  // scaled, stripped of unreferenced vertices and oriented in place.
   // The map does not depend on the mesh's scale, but its arithmetic does: coordinates of 1e200
   // overflow the areas, and 1e-200 underflow them. A power-of-two scale bringing the largest
   // coordinate into [0.5, 1) is exact, so ordinary meshes give the same bits as unscaled.
-  Mesh scaled = raw;
-  const int exponent = scale_by_power_of_two(scaled);
-  const Validation v = validate(scaled, info);
+  Mesh mesh = std::move(raw);
+  const std::size_t vertices_in_file = mesh.vertices.size();
+  const int exponent = scale_by_power_of_two(mesh);
+  const Validation v = validate(mesh, info);
   json defects = json::array();
   for (const auto& d : v.defects) {
     defects.push_back({{"defect", d.name}, {"count", d.count}, {"fatal", d.fatal}, {"message", d.message}});
     if (d.fatal) result.errors.push_back(d.message);
   }
   report["input_statistics"] = {{"format", info.format},
-                                {"vertices_in_file", raw.vertices.size()},
+                                {"vertices_in_file", vertices_in_file},
                                 {"vertices", v.vertices},
                                 {"faces", v.faces},
                                 {"edges", v.edges},
@@ -57,24 +67,31 @@ RunResult run_parameterization(const Mesh& raw, const ReadInfo& info, PipelineOp
     options.progress("read " + input_name + " (" + std::to_string(v.vertices) + " vertices, " +
                      std::to_string(v.faces) + " faces)");
   std::vector<int>& kept = result.kept;
-  const Mesh mesh = drop_unreferenced(scaled, &kept);
+  if (v.unreferenced > 0) {
+    mesh = drop_unreferenced(mesh, &kept);
+  } else {
+    kept.resize(mesh.vertices.size());
+    std::iota(kept.begin(), kept.end(), 0);
+  }
   if (!vertex_factors.empty()) {
     options.vertex_factors.resize(kept.size());
     for (std::size_t i = 0; i < kept.size(); ++i)
       options.vertex_factors[i] = vertex_factors[static_cast<std::size_t>(kept[i])];
   }
-  Mesh work = mesh;  // outward oriented
-  if (v.inward)
-    for (auto& f : work.faces) std::swap(f[1], f[2]);
+  auto reverse_faces = [&mesh] {
+    for (auto& f : mesh.faces) std::swap(f[1], f[2]);
+  };
+  if (v.inward) reverse_faces();  // the pipeline works on the outward-oriented mesh
   const auto start = std::chrono::steady_clock::now();
-  const PipelineResult R = parameterize(work, options);
+  PipelineResult R = parameterize(mesh, options);
   const double compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  double target_error = 0;  // against the weighted targets (with --target-weights)
+  if (!options.vertex_factors.empty())
+    target_error = target_area_error(mesh, R.sphere, face_targets(mesh, options.vertex_factors));
+  if (v.inward) reverse_faces();  // the input's faces again
 
-  result.output = mesh;
-  result.output.vertices = R.sphere;
-  for (auto& p : result.output.vertices) p.normalize();
-  for (std::size_t i = 0; i < result.output.vertices.size(); ++i)
-    if (!result.output.vertices[i].allFinite()) {  // never written: a bug to report, not a map
+  for (std::size_t i = 0; i < R.sphere.size(); ++i)
+    if (!R.sphere[i].allFinite()) {  // never written: a bug to report, not a map
       result.status = report["status"] = "failed";
       report["error"] = "the map of vertex " + std::to_string(kept[i]) + " is not finite";
       result.errors.push_back(report["error"].get<std::string>());
@@ -83,6 +100,7 @@ RunResult run_parameterization(const Mesh& raw, const ReadInfo& info, PipelineOp
 
   const double sign = v.inward ? -1.0 : 1.0;
   if (initial_metrics) result.initial = evaluate_map(mesh, R.initial, sign);
+  std::vector<Vec3>().swap(R.initial);
   result.final_map = evaluate_map(mesh, R.sphere, sign);
   result.status = report["status"] = result.final_map.flips == 0 ? "ok" : "flipped_faces";
   json stages = json::array();
@@ -113,10 +131,10 @@ RunResult run_parameterization(const Mesh& raw, const ReadInfo& info, PipelineOp
                          {"untangle_remaining_flips", R.untangle_remaining}};
   report["initial_map"] = metrics_json(result.initial);
   report["final_map"] = metrics_json(result.final_map);
-  if (!options.vertex_factors.empty()) {
-    const auto targets = face_targets(work, options.vertex_factors);
-    report["final_map"]["target_area_mean_abs"] = target_area_error(work, R.sphere, targets);
-  }
+  if (!options.vertex_factors.empty()) report["final_map"]["target_area_mean_abs"] = target_error;
+  result.output.faces = std::move(mesh.faces);
+  result.output.vertices = std::move(R.sphere);
+  for (auto& p : result.output.vertices) p.normalize();
   return result;
 }
 
