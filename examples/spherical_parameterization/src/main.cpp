@@ -46,6 +46,8 @@ const char* usage =
     "                         level, up to N levels (default 1)\n"
     "  --reweightings N       stretch reweightings of the initial Tutte map at most (default 40;\n"
     "                         they run only while more than 0.5% of the faces are crushed below e^-4)\n"
+    "  --coarse-to-fine       when the Tutte map stays crushed (long thin tubes), start from a\n"
+    "                         coarse-to-fine map (edge collapses, then vertices put back) instead\n"
     "  --no-optimize          skip the final area-correcting optimization\n"
     "  --separation-threshold X  run site-separation passes while the shortest edge of the map\n"
     "                         is below X*sqrt(4pi/N) (default 5e-5; 0 disables them)\n"
@@ -174,6 +176,8 @@ int main(int argc, char** argv) {
       options.max_refine = integer_option(a, value("a number"), 0);
     else if (a == "--reweightings")
       options.max_reweightings = integer_option(a, value("a number"), 0);
+    else if (a == "--coarse-to-fine")
+      options.hierarchical_initial_map = true;
     else if (a == "--no-optimize")
       options.optimize = false;
     else if (a == "--separation-delta")

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <future>
+#include <iterator>
 #include <limits>
 #include <numeric>
 #include <sdot/linear_solver.hpp>
@@ -318,7 +319,7 @@ std::vector<double> vertex_targets(const Mesh& mesh, const std::vector<double>& 
 }
 
 std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets,
-                                   int max_reweightings, int* reweightings) {
+                                   int max_reweightings, int* reweightings, bool* crushed, bool uniform_weights) {
   const std::size_t nv = mesh.vertices.size(), nf = mesh.faces.size();
   const auto areas = face_areas(mesh);
   const std::size_t outer = static_cast<std::size_t>(std::max_element(areas.begin(), areas.end()) - areas.begin());
@@ -335,7 +336,7 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
     }
   mean /= static_cast<double>(3 * nf);
   for (auto& c : fc)
-    for (double& x : c) x = std::max(x, 0.02 * mean);
+    for (double& x : c) x = uniform_weights ? 1.0 : std::max(x, 0.02 * mean);
 
   std::vector<int> index(nv, -1);
   const int b[3] = {ob[0], ob[1], ob[2]};
@@ -354,6 +355,8 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
   const bool lower_only = solver.lower_only();
   std::vector<Vec3> s(nv);
   int done = 0;
+  bool still_crushed = false;
+  std::vector<double> quantiles;  // the 0.5 % quantile of the log stretch after each solve
   for (int iteration = 0;; ++iteration) {
     std::vector<Eigen::Triplet<double>> trips;
     trips.reserve((lower_only ? 3 : 6) * nf + nv);
@@ -420,13 +423,19 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
     std::vector<double> sorted = logs;
     const std::size_t q = sorted.size() / 200;  // 0.5% quantile of log stretch
     std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(q), sorted.end());
-    if (sorted[q] > -4.0) break;  // no region crushed by more than e^-4: good enough for OT
+    still_crushed = sorted[q] <= -4.0;
+    if (!still_crushed) break;  // no region crushed by more than e^-4: good enough for OT
+    // Less than 0.25 gained over 4 reweightings: the crushed parts are tubes whose crushing
+    // reweighting cannot undo (param.hpp, hierarchical_sphere_map); more solves only cost time.
+    quantiles.push_back(sorted[q]);
+    if (crushed && quantiles.size() > 4 && quantiles.back() < quantiles[quantiles.size() - 5] + 0.25) break;
     // the full stretch (exponent 1) converges in half the reweightings of its square root
     // (bunny_35k: 7 against 14) to the same OT result
     for (std::size_t f = 0; f < nf; ++f) sigma[f] *= std::exp(std::clamp(logs[f], -4.0, 4.0));
     ++done;
   }
   if (reweightings) *reweightings = done;
+  if (crushed) *crushed = still_crushed;
   return s;
 }
 
@@ -556,7 +565,7 @@ double untangling_energy(const ChartPatch& patch, const Eigen::MatrixX2d& x, dou
   return energy;
 }
 
-bool untangle_chart_patch(const ChartPatch& patch, Eigen::MatrixX2d& x) {
+bool untangle_chart_patch(const ChartPatch& patch, Eigen::MatrixX2d& x, std::size_t* face_budget) {
   const Eigen::Index n = 2 * patch.free_count;
   Eigen::VectorXd gradient(n), trial_gradient(n), direction(n);
   double min_det = 0;
@@ -570,9 +579,18 @@ bool untangle_chart_patch(const ChartPatch& patch, Eigen::MatrixX2d& x) {
   for (Eigen::Index i = 0; i < patch.free_count; ++i) values.segment<2>(2 * i) = x.row(i).transpose();
   Eigen::MatrixX2d trial = x;
   // a bound on the work (face evaluations): about 0.2 s, so a hopeless patch costs little
-  const std::size_t max_evaluations =
-      std::max<std::size_t>(20'000'000 / std::max<std::size_t>(patch.faces.size(), 1), 100);
+  std::size_t max_evaluations = std::max<std::size_t>(20'000'000 / std::max<std::size_t>(patch.faces.size(), 1), 100);
+  if (face_budget)
+    max_evaluations = std::min(max_evaluations, *face_budget / std::max<std::size_t>(patch.faces.size(), 1));
   std::size_t evaluations = 0;
+  struct Charge {  // the face evaluations leave the budget whichever way the function returns
+    std::size_t* budget;
+    const std::size_t& used;
+    std::size_t faces;
+    ~Charge() {
+      if (budget) *budget -= std::min(*budget, used * faces);
+    }
+  } charge{face_budget, evaluations, patch.faces.size()};
   for (int outer = 0; outer < 30 && evaluations < max_evaluations; ++outer) {
     constexpr int history = 8;
     std::vector<Eigen::VectorXd> steps, gradient_changes;
@@ -629,7 +647,8 @@ bool untangle_chart_patch(const ChartPatch& patch, Eigen::MatrixX2d& x) {
   return false;
 }
 
-std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& s, int max_rings) {
+std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& s, int max_rings,
+                                    int* patches, int* chart_untangles) {
   const std::size_t nv = s.size();
   auto det = [&](std::size_t f) {
     const auto& t = mesh.faces[f];
@@ -637,24 +656,40 @@ std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std:
   };
   std::vector<int> depth(nv, -1), free_index(nv, -1);
   std::vector<char> tried_face(mesh.faces.size(), 0), in_patch(mesh.faces.size(), 0);
+  // Work bounds that keep the repair linear in the mesh size however many faces are flipped:
+  // the scan for the next flipped face moves forward (it starts again from 0 only after a pass
+  // that repaired something), the BFS resets only what it touched, and the chart untangling of
+  // all patches together gets at most 200 face evaluations per mesh face (tubes_25k: 730 flipped
+  // faces took minutes at 2·10⁷ per patch).
+  std::size_t untangle_budget = 200 * mesh.faces.size();
+  std::size_t cursor = 0;
+  bool repaired_in_pass = false;
+  std::vector<int> touched;
   for (;;) {
     std::size_t seed = mesh.faces.size();
-    for (std::size_t f = 0; f < mesh.faces.size() && seed == mesh.faces.size(); ++f)
-      if (!tried_face[f] && det(f) <= 0) seed = f;
-    if (seed == mesh.faces.size()) break;  // no flips left, or none we can still repair
+    for (; cursor < mesh.faces.size() && seed == mesh.faces.size(); ++cursor)
+      if (!tried_face[cursor] && det(cursor) <= 0) seed = cursor;
+    if (seed == mesh.faces.size()) {
+      if (!repaired_in_pass) break;  // no flips left, or none we can still repair
+      cursor = 0, repaired_in_pass = false;
+      continue;
+    }
     tried_face[seed] = 1;
+    if (patches) ++*patches;
     bool repaired = false;
     for (int rings = 1; rings <= max_rings && !repaired; rings = rings < 4 ? rings + 1 : rings * 3 / 2) {
       // free vertices: within `rings` edges of the flipped face; fixed: the ring just outside
       std::vector<int> free_vertices(mesh.faces[seed].begin(), mesh.faces[seed].end()), fixed;
-      std::fill(depth.begin(), depth.end(), -1);
-      for (int v : free_vertices) depth[u(v)] = 0;
+      for (int v : touched) depth[u(v)] = -1;
+      touched.clear();
+      for (int v : free_vertices) depth[u(v)] = 0, touched.push_back(v);
       for (std::size_t head = 0; head < free_vertices.size(); ++head) {
         const int v = free_vertices[head];
         for (int k = topo.nbr_offsets[u(v)]; k < topo.nbr_offsets[u(v) + 1]; ++k) {
           const int w = topo.nbrs[u(k)];
           if (depth[u(w)] >= 0) continue;
           depth[u(w)] = depth[u(v)] + 1;
+          touched.push_back(w);
           (depth[u(w)] <= rings ? free_vertices : fixed).push_back(w);
         }
       }
@@ -728,6 +763,7 @@ std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std:
       if (lu.info() == Eigen::Success) {
         const Eigen::MatrixX2d x = lu.solve(rhs);
         repaired = lu.info() == Eigen::Success && x.allFinite() && try_positions(x);
+        repaired_in_pass = repaired_in_pass || repaired;
       }
       if (!repaired) {
         // Floater's embedding folds when the fixed ring is far from convex (arm.off: at every
@@ -775,8 +811,10 @@ std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std:
           patch.reference_inverse[f] = (scale * patch.reference_inverse[f]).inverse().eval();
           patch.reference_area[f] *= scale * scale;
         }
-        if (scale > 0 && std::isfinite(scale) && untangle_chart_patch(patch, positions))
-          repaired = try_positions(positions);
+        if (chart_untangles) ++*chart_untangles;
+        if (scale > 0 && std::isfinite(scale) && untangle_budget > 0 &&
+            untangle_chart_patch(patch, positions, &untangle_budget))
+          repaired = try_positions(positions), repaired_in_pass = repaired_in_pass || repaired;
         for (int v : fixed) free_index[u(v)] = -1;
       }
       for (int v : free_vertices) free_index[u(v)] = -1;
@@ -1020,6 +1058,216 @@ Mesh subdivide(const Mesh& mesh) {
     out.faces.push_back({ab, bc, ca});
   }
   return out;
+}
+
+}  // namespace sphparam
+
+namespace sphparam {
+
+// ------------------------------------------------------------------- coarse-to-fine initial map
+namespace {
+
+/// One level of the hierarchy: the faces before its collapses and the collapses (removed vertex,
+/// the neighbour it went into). The removed vertices are 3 edges apart, so the collapses and
+/// their reversal are independent of each other.
+struct CollapseLevel {
+  std::vector<Face> faces;
+  std::vector<std::pair<int, int>> collapses;
+};
+
+/// Vertices of a face list as a compact mesh (original coordinates), with the map back.
+Mesh compact_mesh(const Mesh& mesh, const std::vector<Face>& faces, std::vector<int>& global_of,
+                  std::vector<int>& local_of) {
+  std::fill(local_of.begin(), local_of.end(), -1);
+  global_of.clear();
+  Mesh out;
+  for (const auto& f : faces)
+    for (int v : f)
+      if (local_of[u(v)] < 0) {
+        local_of[u(v)] = static_cast<int>(global_of.size());
+        global_of.push_back(v);
+        out.vertices.push_back(mesh.vertices[u(v)]);
+      }
+  out.faces.reserve(faces.size());
+  for (const auto& f : faces) out.faces.push_back({local_of[u(f[0])], local_of[u(f[1])], local_of[u(f[2])]});
+  return out;
+}
+
+}  // namespace
+
+std::vector<Vec3> hierarchical_sphere_map(const Mesh& mesh, std::size_t base_vertices, HierarchyInfo* info) {
+  const std::size_t nv = mesh.vertices.size();
+  std::vector<CollapseLevel> levels;
+  std::vector<Face> faces = mesh.faces;
+  std::vector<char> alive(nv, 1), marked(nv, 0);
+  std::size_t alive_count = nv;
+  std::vector<std::vector<int>> nbrs(nv);
+  std::vector<int> order(nv);
+  std::vector<double> shortest(nv);
+  // Edge cost: the angle between the vertex normals, plus a tie-break by length. Along a tube
+  // the normals are parallel and around it they turn: collapses shorten tubes before they thin
+  // them (a tube thinned to 3 vertices around cannot be shortened: the link condition fails).
+  std::vector<Vec3> normal(nv, Vec3::Zero());
+  double mean_edge = 0;
+  for (const auto& f : mesh.faces) {
+    const Vec3 n =
+        (mesh.vertices[u(f[1])] - mesh.vertices[u(f[0])]).cross(mesh.vertices[u(f[2])] - mesh.vertices[u(f[0])]);
+    for (int v : f) normal[u(v)] += n;
+    mean_edge += (mesh.vertices[u(f[1])] - mesh.vertices[u(f[0])]).norm();
+  }
+  mean_edge /= static_cast<double>(std::max<std::size_t>(mesh.faces.size(), 1));
+  for (auto& n : normal) n = n.norm() > 0 ? Vec3(n.normalized()) : Vec3::UnitZ();
+  auto cost = [&](int a, int b) {
+    return std::acos(std::clamp(normal[u(a)].dot(normal[u(b)]), -1.0, 1.0)) +
+           0.01 * (mesh.vertices[u(a)] - mesh.vertices[u(b)]).norm() / mean_edge;
+  };
+  while (alive_count > base_vertices) {
+    for (auto& n : nbrs) n.clear();
+    for (const auto& f : faces)
+      for (int k = 0; k < 3; ++k) nbrs[u(f[u(k)])].push_back(f[u((k + 1) % 3)]);  // one per face
+    for (auto& n : nbrs) std::sort(n.begin(), n.end());
+    // cheapest edges first
+    std::iota(order.begin(), order.end(), 0);
+    for (std::size_t v = 0; v < nv; ++v) {
+      shortest[v] = 1e300;
+      for (int w : nbrs[v]) shortest[v] = std::min(shortest[v], cost(static_cast<int>(v), w));
+    }
+    std::sort(order.begin(), order.end(), [&](int a, int b) { return shortest[u(a)] < shortest[u(b)]; });
+    std::fill(marked.begin(), marked.end(), 0);
+    CollapseLevel level;
+    for (int v : order) {
+      if (!alive[u(v)] || marked[u(v)] || nbrs[u(v)].size() < 3) continue;
+      bool free = true;
+      for (int w : nbrs[u(v)]) free = free && !marked[u(w)];
+      if (!free) continue;
+      // the neighbour along the shortest edge that keeps the mesh a manifold: exactly two common
+      // neighbours (the link condition), both of degree > 3, and no vertex of degree above 12
+      int into = -1;
+      double best = 1e300;
+      for (int w : nbrs[u(v)]) {
+        const double length = cost(v, w);
+        if (length >= best || nbrs[u(w)].size() + nbrs[u(v)].size() > 16) continue;
+        std::vector<int> common;
+        std::set_intersection(nbrs[u(v)].begin(), nbrs[u(v)].end(), nbrs[u(w)].begin(), nbrs[u(w)].end(),
+                              std::back_inserter(common));
+        if (common.size() != 2 || nbrs[u(common[0])].size() <= 3 || nbrs[u(common[1])].size() <= 3) continue;
+        into = w, best = length;
+      }
+      if (into < 0) continue;
+      level.collapses.emplace_back(v, into);
+      marked[u(v)] = 1;
+      for (int w : nbrs[u(v)]) marked[u(w)] = 1;
+    }
+    if (level.collapses.size() * 200 < alive_count) break;  // nothing left worth a level
+    level.faces = faces;
+    std::vector<int> into(nv, -1);
+    for (auto [v, w] : level.collapses) into[u(v)] = w, alive[u(v)] = 0;
+    alive_count -= level.collapses.size();
+    std::vector<Face> coarse;
+    coarse.reserve(faces.size());
+    for (auto f : faces) {
+      bool dropped = false;
+      for (int& x : f)
+        if (into[u(x)] >= 0) {
+          const int w = into[u(x)];
+          dropped = dropped || f[0] == w || f[1] == w || f[2] == w;  // the two faces on the edge
+          x = w;
+        }
+      if (!dropped) coarse.push_back(f);
+    }
+    faces = std::move(coarse);
+    levels.push_back(std::move(level));
+  }
+
+  // The base: Tutte, then its areas corrected (a flip-free optimization keeps it an embedding).
+  std::vector<int> global_of, local_of(nv, -1);
+  std::vector<Vec3> s(nv, Vec3::Zero());
+  auto relax = [&](const std::vector<Face>& level_faces, int sweeps) {
+    const Mesh level_mesh = compact_mesh(mesh, level_faces, global_of, local_of);
+    const Topology level_topo(level_mesh);
+    std::vector<Vec3> local(global_of.size());
+    for (std::size_t i = 0; i < global_of.size(); ++i) local[i] = s[u(global_of[i])];
+    OptimizeOptions o;
+    o.max_sweeps = sweeps;
+    optimize_area(level_mesh, level_topo, face_targets(level_mesh, {}), local, o);
+    for (std::size_t i = 0; i < global_of.size(); ++i) s[u(global_of[i])] = local[i];
+  };
+  {
+    const Mesh base = compact_mesh(mesh, faces, global_of, local_of);
+    const Topology base_topo(base);
+    const auto base_targets = face_targets(base, {});
+    // uniform weights: the collapsed mesh's triangles are far from its surface's shape, and
+    // their clamped cotangents span orders of magnitude
+    const std::vector<Vec3> base_map = tutte_sphere_map(base, base_topo, base_targets, 40, nullptr, nullptr, true);
+    for (std::size_t i = 0; i < global_of.size(); ++i) s[u(global_of[i])] = base_map[i];
+    if (info) info->base_vertices = global_of.size(), info->base_flips = count_flips(base, base_map);
+    relax(faces, 50);
+  }
+  // Coarse to fine: each removed vertex goes back next to the vertex it was collapsed into,
+  // inside the wedge of its two faces on that edge, close enough that none of its faces is
+  // inverted (its other faces are then near the positive faces they were collapsed into).
+  for (std::size_t l = levels.size(); l-- > 0;) {
+    const CollapseLevel& level = levels[l];
+    std::vector<std::vector<int>> faces_of(level.collapses.size());
+    std::vector<int> slot(nv, -1);
+    for (std::size_t c = 0; c < level.collapses.size(); ++c) slot[u(level.collapses[c].first)] = static_cast<int>(c);
+    for (std::size_t f = 0; f < level.faces.size(); ++f)
+      for (int x : level.faces[f])
+        if (slot[u(x)] >= 0) faces_of[u(slot[u(x)])].push_back(static_cast<int>(f));
+    for (std::size_t c = 0; c < level.collapses.size(); ++c) {
+      const auto [v, w] = level.collapses[c];
+      const Vec3 p = s[u(w)];
+      Vec3 left = Vec3::Zero(), right = Vec3::Zero();  // third vertices of (w, v, left), (v, w, right)
+      double reach = 1e300;
+      for (int f : faces_of[c]) {
+        const auto& t = level.faces[u(f)];
+        for (int k = 0; k < 3; ++k) {
+          if (t[u(k)] == w && t[u((k + 1) % 3)] == v) left = s[u(t[u((k + 2) % 3)])];
+          if (t[u(k)] == v && t[u((k + 1) % 3)] == w) right = s[u(t[u((k + 2) % 3)])];
+          if (t[u(k)] != v && t[u(k)] != w) reach = std::min(reach, (s[u(t[u(k)])] - p).norm());
+        }
+      }
+      // tangent directions at p: the step t needs det[p, t, left] > 0 and det[p, t, right] < 0
+      const Vec3 e1 = p.unitOrthogonal(), e2 = p.cross(e1);
+      const double to_left = std::atan2(left.dot(e2), left.dot(e1));
+      double to_right = std::atan2(right.dot(e2), right.dot(e1));
+      double arc = to_left - to_right;  // counter-clockwise from right to left
+      if (arc <= 0) arc += 2 * M_PI;
+      const double lower = std::max(0.0, arc - M_PI), upper = std::min(M_PI, arc);
+      const double angle = to_right + 0.5 * (lower + upper);
+      const Vec3 direction = std::cos(angle) * e1 + std::sin(angle) * e2;
+      auto positive = [&](const Vec3& q) {
+        s[u(v)] = q;
+        for (int f : faces_of[c]) {
+          const auto& t = level.faces[u(f)];
+          if (!(s[u(t[0])].dot(s[u(t[1])].cross(s[u(t[2])])) > 0)) return false;
+        }
+        return true;
+      };
+      double step = 0.3 * reach;
+      bool placed = false;
+      for (int halving = 0; halving < 60 && !placed; ++halving, step *= 0.5)
+        placed = positive((p + step * direction).normalized());
+      if (!placed) positive((p + step * direction).normalized());  // rounding: left to the untangling
+      if (placed) {
+        // towards the mean of its neighbours while that inverts nothing
+        Vec3 mean = Vec3::Zero();
+        for (int f : faces_of[c])
+          for (int x : level.faces[u(f)])
+            if (x != v) mean += s[u(x)];
+        const Vec3 start = s[u(v)];
+        for (double t : {1.0, 0.5, 0.25}) {
+          if (positive((start + t * (mean.normalized() - start)).normalized())) break;
+          positive(start);
+        }
+      } else if (info) {
+        ++info->unplaced;
+      }
+    }
+    relax(level.faces, 4);
+  }
+  if (info) info->levels = static_cast<int>(levels.size());
+  return s;
 }
 
 }  // namespace sphparam

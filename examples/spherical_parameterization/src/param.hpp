@@ -41,9 +41,30 @@ std::vector<double> vertex_targets(const Mesh& mesh, const std::vector<double>& 
 /// are crushed below e^-4 relative to the median stretch: this opens up the exponentially
 /// crushed protrusions of harmonic maps (fingers, ears, arm.off's hand). The stretch is measured
 /// on the planar embedding (times the stereographic area factor): crushed faces there are 1e-12
-/// across, far below what points on the unit sphere resolve.
+/// across, far below what points on the unit sphere resolve. With `crushed`, the reweighting stops early when
+/// four reweightings gain less than 0.25 on that quantile; `crushed` then says that the map is
+/// still crushed (the pipeline then uses hierarchical_sphere_map). `uniform_weights`: all edge
+/// weights 1 instead of the clamped cotangents.
 std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets = {},
-                                   int max_reweightings = 0, int* reweightings = nullptr);
+                                   int max_reweightings = 0, int* reweightings = nullptr, bool* crushed = nullptr,
+                                   bool uniform_weights = false);
+
+struct HierarchyInfo {
+  int levels = 0;                 ///< collapse levels
+  std::size_t base_vertices = 0;  ///< vertices of the coarsest mesh
+  std::size_t base_flips = 0;     ///< inverted faces of its Tutte map (rounding)
+  std::size_t unplaced = 0;       ///< vertices that found no flip-free place when put back
+};
+/// Coarse-to-fine initial map for meshes whose Tutte map stays crushed after the reweighting
+/// (long thin tubes: a harmonic map crushes a tube of length L and radius r by about e^(-L/r),
+/// e^-100 at L = 100 r, and positive weights on a triangulated tube cannot make it less than
+/// about e^(-0.58 L/r)). Levels of independent edge collapses (shortest edges first, removed
+/// vertices 3 edges apart) reduce the mesh to about `base_vertices`, where a tube has few
+/// rings; that mesh is mapped by Tutte and area-corrected; then every level puts its removed
+/// vertices back inside the wedge of their collapsed edge (no face inverted) and runs a few
+/// sweeps of the flip-free area optimization, so no level is crushed.
+std::vector<Vec3> hierarchical_sphere_map(const Mesh& mesh, std::size_t base_vertices = 200,
+                                          HierarchyInfo* info = nullptr);
 
 /// Möbius balancing: applies ball automorphisms until the weighted mean of the points is at the
 /// origin (|mean| ≤ tol). Returns the number of iterations.
@@ -65,7 +86,10 @@ std::size_t untangle(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& 
 /// the patch is flipped; where that embedding folds (a fixed ring far from convex), the patch is
 /// untangled from its current positions instead (untangle_chart_patch). Patches that cannot be
 /// repaired are left as they were. Returns the number of flipped faces left.
-std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& s, int max_rings = 64);
+/// `patches` (optional) counts the flipped faces whose patch was re-embedded, and
+/// `chart_untangles` the patches that needed untangle_chart_patch.
+std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& s, int max_rings = 64,
+                                    int* patches = nullptr, int* chart_untangles = nullptr);
 
 /// A planar patch to untangle (the fallback of repair_flips_by_patches when Floater's embedding
 /// folds, i.e. when the fixed ring is far from convex): vertices 0 … free_count-1 move, the others
@@ -88,7 +112,8 @@ double untangling_energy(const ChartPatch& patch, const Eigen::MatrixX2d& x, dou
 /// ε, the paper's ε rule) until every face is positively oriented: true then, with `x` updated.
 /// False when that fails in 30 ε steps or about 2·10⁷ face evaluations (e.g. the fixed ring's
 /// kernel is empty).
-bool untangle_chart_patch(const ChartPatch& patch, Eigen::MatrixX2d& x);
+/// `face_budget` (optional): face evaluations left to spend; lowered by those spent.
+bool untangle_chart_patch(const ChartPatch& patch, Eigen::MatrixX2d& x, std::size_t* face_budget = nullptr);
 
 struct OptimizeOptions {
   int max_sweeps = 200;

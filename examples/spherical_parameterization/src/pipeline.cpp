@@ -305,12 +305,22 @@ PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
   // 1. Initial map: Tutte embedding, inverse stereographic projection, Möbius balancing.
   auto t = Clock::now();
   int reweightings = 0;
-  std::vector<Vec3> s = tutte_sphere_map(mesh, topo, targets, options.max_reweightings, &reweightings);
-  const int mobius_iterations = mobius_balance(s, masses);
+  bool crushed = false;
+  std::vector<Vec3> s = tutte_sphere_map(mesh, topo, targets, options.max_reweightings, &reweightings,
+                                         options.hierarchical_initial_map ? &crushed : nullptr);
+  std::string how = "Tutte + " + std::to_string(reweightings) + " stretch reweightings + stereographic";
+  if (crushed && options.hierarchical_initial_map) {
+    // tubes that the reweighting cannot open: their sites would coincide on the sphere
+    s = hierarchical_sphere_map(mesh, 40, &R.hierarchy);
+    ++R.fallbacks.hierarchical_initial_map;
+    how += ", still crushed: coarse-to-fine map instead (" + std::to_string(R.hierarchy.levels) + " levels, " +
+           std::to_string(R.hierarchy.base_vertices) + " base vertices)";
+  }
+  // The coarse-to-fine map is area-corrected at every level, so it is balanced already; a
+  // Möbius map would magnify its smallest faces below rounding (tubes_25k: 0 → 5226 flips).
+  const int mobius_iterations = R.fallbacks.hierarchical_initial_map ? 0 : mobius_balance(s, masses);
   R.initial = s;
-  record("initial_map", since(t), s,
-         "Tutte + " + std::to_string(reweightings) + " stretch reweightings + stereographic + Moebius (" +
-             std::to_string(mobius_iterations) + " it)");
+  record("initial_map", since(t), s, how + " + Moebius (" + std::to_string(mobius_iterations) + " it)");
 
   // 2. OT with sdot::Sphere: sites = current positions (+ refined Diracs), masses = vertex areas.
   t = Clock::now();
@@ -326,6 +336,7 @@ PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
       if (spacing >= options.min_spacing * h0) break;
       const auto tp = Clock::now();
       const std::string note = separate_clusters(s, masses, options.separation_delta * h0, R.ot);
+      ++R.fallbacks.separation_passes;
       record("separation_pass_" + std::to_string(pass + 1), since(tp), s, note);
     }
   }
@@ -425,7 +436,8 @@ PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
           // a few stuck folds: the patch re-embedding (below) is far cheaper than more ε levels
           // (armadillo_43k: 2 flips left after ε = 0.1, then 8 more levels of 60 sweeps, 13 s)
           std::vector<Vec3> trial = s;
-          if (repair_flips_by_patches(mesh, topo, trial) == 0) {
+          if (repair_flips_by_patches(mesh, topo, trial, 64, &R.fallbacks.flip_patches, &R.fallbacks.chart_untangles) ==
+              0) {
             s = std::move(trial);
             flips = 0;
             say("  untangling: the last flipped faces re-embedded in patches");
@@ -445,7 +457,8 @@ PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
     if (R.untangle_remaining > 0) {
       // re-embed a growing disk around each flipped face (positive weights), then repair its areas
       const std::size_t before = R.untangle_remaining;
-      R.untangle_remaining = repair_flips_by_patches(mesh, topo, s);
+      R.untangle_remaining =
+          repair_flips_by_patches(mesh, topo, s, 64, &R.fallbacks.flip_patches, &R.fallbacks.chart_untangles);
       record("untangle_patches", since(t), s, std::to_string(before) + " flipped faces before");
       t = Clock::now();
     }
@@ -453,10 +466,12 @@ PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
       // the Laplacian rounds below are slow and rarely finish the job: refine the Diracs first
       say(std::to_string(R.untangle_remaining) + " flipped faces left: OT again with refinement " +
           std::to_string(level + 1));
+      ++R.fallbacks.ot_reruns;
       continue;
     }
     for (int round = 0; round < 4 && R.untangle_remaining > 0; ++round) {
       // monotone Laplacian moves rearrange the stuck spots, then the regularised energy again
+      ++R.fallbacks.laplacian_rounds;
       untangle(mesh, topo, s, 30, false);
       OptimizeOptions uo;
       uo.conformal_weight = 0;
@@ -470,6 +485,7 @@ PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
       R.untangle_remaining = count_flips(mesh, s);
     }
     if (R.untangle_remaining > 0) {
+      ++R.fallbacks.free_smoothing;
       std::vector<Vec3> trial = s;  // free smoothing may destroy more than it repairs: keep the best
       const std::size_t left = untangle(mesh, topo, trial, 400, true);
       if (left < R.untangle_remaining) s = std::move(trial), R.untangle_remaining = left;

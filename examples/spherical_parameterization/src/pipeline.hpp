@@ -34,6 +34,10 @@ struct PipelineOptions {
   double min_spacing = 5e-5;
   /// Separation radius of the representatives, times sqrt(4π/N).
   double separation_delta = 0.1;
+  /// When the reweighted Tutte map stays crushed, start from hierarchical_sphere_map instead
+  /// (--coarse-to-fine). Off by default: its maps are flip-free, but their areas are still far
+  /// from the targets (the very long spikes of the tests: area mean|d| 0.58 against 0.09).
+  bool hierarchical_initial_map = false;
   bool optimize = true;  ///< run the final area-correcting optimization
   OptimizeOptions optimizer;
   std::vector<double> vertex_factors;  ///< --target-weights (empty: uniform)
@@ -62,6 +66,22 @@ struct OtRecord {
   std::vector<double> error_history;
 };
 
+/// How often each fallback path ran: each is a repair of what the main path left, so on an
+/// ordinary mesh they are all 0.
+struct FallbackCounts {
+  int hierarchical_initial_map = 0;  ///< the Tutte map stayed crushed: coarse-to-fine map instead
+  int separation_passes = 0;         ///< OT passes on separated representatives of crushed sites
+  int flip_patches = 0;              ///< flipped faces whose surrounding disk was re-embedded
+  int chart_untangles = 0;           ///< of these, patches untangled by the foldover-free energy
+  int ot_reruns = 0;                 ///< OT and untangling rerun with one more Dirac level
+  int laplacian_rounds = 0;          ///< rounds of monotone Laplacian moves and the regularised energy
+  int free_smoothing = 0;            ///< free Laplacian smoothing on growing rings
+  [[nodiscard]] int total() const {
+    return hierarchical_initial_map + separation_passes + flip_patches + chart_untangles + ot_reruns +
+           laplacian_rounds + free_smoothing;
+  }
+};
+
 struct PipelineResult {
   std::vector<Vec3> initial;  ///< the initial (Tutte + Möbius) map
   std::vector<Vec3> sphere;   ///< the final map
@@ -69,6 +89,8 @@ struct PipelineResult {
   OtRecord ot;
   std::size_t untangle_remaining = 0;
   OptimizeResult optimizer;
+  FallbackCounts fallbacks;
+  HierarchyInfo hierarchy;  ///< when fallbacks.hierarchical_initial_map
 };
 
 /// Parameterizes an outward-oriented, validated closed genus-0 mesh.

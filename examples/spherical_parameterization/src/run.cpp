@@ -129,6 +129,15 @@ RunResult run_parameterization(Mesh&& raw, const ReadInfo& info, PipelineOptions
                          {"energy_start", R.optimizer.energy_start},
                          {"energy_end", R.optimizer.energy_end},
                          {"untangle_remaining_flips", R.untangle_remaining}};
+  const FallbackCounts& fb = R.fallbacks;
+  report["fallbacks"] = {{"total", fb.total()},
+                         {"hierarchical_initial_map", fb.hierarchical_initial_map},
+                         {"separation_passes", fb.separation_passes},
+                         {"flip_patches", fb.flip_patches},
+                         {"chart_untangles", fb.chart_untangles},
+                         {"ot_reruns", fb.ot_reruns},
+                         {"laplacian_rounds", fb.laplacian_rounds},
+                         {"free_smoothing", fb.free_smoothing}};
   report["initial_map"] = metrics_json(result.initial);
   report["final_map"] = metrics_json(result.final_map);
   if (!options.vertex_factors.empty()) report["final_map"]["target_area_mean_abs"] = target_error;

@@ -16,6 +16,7 @@
 #include "param.hpp"
 #include "pipeline.hpp"
 #include "report.hpp"
+#include "run.hpp"
 #include "support/scratch_directory.hpp"
 #include "test_meshes.hpp"
 
@@ -650,6 +651,27 @@ TEST(Pipeline, SphereWithLongThinSpikes) {
 TEST(Pipeline, SphereWithVeryLongSpikes) {
   // crushed to e^-9 by the harmonic map (0.5% quantile of the log stretch): needs the reweighting
   expect_flip_free(test::spiky_sphere(4, 4, 16.0, 0.15), 0.15);
+}
+
+TEST(Report, FallbackActivationsAreCounted) {
+  // an icosphere needs no fallback; the very long spikes need the OT rerun with more Diracs
+  const auto report_of = [](const Mesh& m) {
+    return run_parameterization(m, ReadInfo{}, PipelineOptions{}, {}, false, "generated").report;
+  };
+  const auto plain = report_of(test::icosphere(3));
+  ASSERT_TRUE(plain.contains("fallbacks"));
+  EXPECT_EQ(plain["fallbacks"]["total"].get<int>(), 0);
+  const auto spiky = report_of(test::spiky_sphere(4, 4, 16.0, 0.15));
+  const auto& counts = spiky["fallbacks"];
+  int sum = 0;
+  for (const char* key : {"hierarchical_initial_map", "separation_passes", "flip_patches", "chart_untangles",
+                          "ot_reruns", "laplacian_rounds", "free_smoothing"}) {
+    ASSERT_TRUE(counts.contains(key)) << key;
+    sum += counts[key].get<int>();
+  }
+  EXPECT_EQ(counts["total"].get<int>(), sum);
+  EXPECT_GE(counts["ot_reruns"].get<int>(), 1);
+  EXPECT_EQ(spiky["final_map"]["flips"].get<std::size_t>(), 0u);
 }
 
 TEST(Pipeline, RandomBumps) {
