@@ -1,5 +1,6 @@
 // The parameterization pipeline. The OT stage uses the library's sphere geometry and solver.
 #include "pipeline.hpp"
+#include "sub_resolution.hpp"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -287,7 +288,8 @@ double target_area_error(const Mesh& mesh, const std::vector<Vec3>& s, const std
   return n ? sum / static_cast<double>(n) : std::nan("");
 }
 
-PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
+/// The pipeline on a mesh without sub-resolution vertices (or with them kept).
+static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options) {
   PipelineResult R;
   auto say = [&](const std::string& s) {
     if (options.progress) options.progress(s);
@@ -519,6 +521,52 @@ PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
     record("area_optimization", since(t), s, std::to_string(R.optimizer.sweeps) + " sweeps");
   }
   R.sphere = std::move(s);
+  return R;
+}
+
+PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
+  auto t = Clock::now();
+  const MeshReduction reduction = options.sub_resolution_area_ratio > 0
+                                      ? remove_sub_resolution_vertices(mesh, options.sub_resolution_area_ratio)
+                                      : MeshReduction{};
+  if (reduction.removed.empty()) return map_mesh(mesh, options);
+  const double reduction_seconds = since(t);
+  auto say = [&](const std::string& s) {
+    if (options.progress) options.progress(s);
+  };
+  say("sub-resolution vertices: " + std::to_string(reduction.removed.size()) + " removed in " +
+      std::to_string(reduction.rounds) + " round(s) (" + fmt_g(reduction_seconds) + " s), mapping " +
+      std::to_string(reduction.reduced.vertices.size()) + " vertices");
+  // The reduced mesh is mapped without the final optimization, which runs once on the full mesh.
+  PipelineOptions reduced_options = options;
+  reduced_options.optimize = false;
+  if (!options.vertex_factors.empty()) {
+    reduced_options.vertex_factors.clear();
+    for (int v : reduction.kept) reduced_options.vertex_factors.push_back(options.vertex_factors[u(v)]);
+  }
+  PipelineResult R = map_mesh(reduction.reduced, reduced_options);
+  R.sub_resolution_vertices = reduction.removed.size();
+  t = Clock::now();
+  const std::size_t nv = mesh.vertices.size();
+  R.initial = restore_sub_resolution_vertices(reduction, R.initial, nv);
+  R.sphere = restore_sub_resolution_vertices(reduction, R.sphere, nv);
+  const Topology topo(mesh);
+  const auto targets = face_targets(mesh, options.vertex_factors);
+  auto record = [&](const std::string& name, double seconds, std::string note) {
+    StageRecord r{name, seconds, target_area_error(mesh, R.sphere, targets), count_flips(mesh, R.sphere),
+                  std::move(note)};
+    say(name + ": " + fmt_g(seconds) + " s, area mean|d| " + fmt_g(r.area_mean_abs) + ", flips " +
+        std::to_string(r.flips) + (r.note.empty() ? "" : " (" + r.note + ")"));
+    R.stages.push_back(std::move(r));
+  };
+  R.untangle_remaining = count_flips(mesh, R.sphere);
+  record("restore_sub_resolution", reduction_seconds + since(t),
+         std::to_string(reduction.removed.size()) + " vertices put back at their barycentric places");
+  if (options.optimize && R.untangle_remaining == 0) {
+    t = Clock::now();
+    R.optimizer = optimize_area(mesh, topo, targets, R.sphere, options.optimizer);
+    record("area_optimization", since(t), std::to_string(R.optimizer.sweeps) + " sweeps");
+  }
   return R;
 }
 

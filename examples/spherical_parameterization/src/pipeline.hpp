@@ -38,6 +38,10 @@ struct PipelineOptions {
   /// (--coarse-to-fine). Off by default: its maps are flip-free, but their areas are still far
   /// from the targets (the very long spikes of the tests: area mean|d| 0.58 against 0.09).
   bool hierarchical_initial_map = false;
+  /// Vertices of valence 3 or 4 whose smallest incident face is below this times the largest are
+  /// mapped by their barycentric place in the face that replaces them (sub_resolution.hpp);
+  /// 0 keeps every vertex in the OT.
+  double sub_resolution_area_ratio = 1e-2;
   bool optimize = true;  ///< run the final area-correcting optimization
   OptimizeOptions optimizer;
   std::vector<double> vertex_factors;  ///< --target-weights (empty: uniform)
@@ -90,7 +94,8 @@ struct PipelineResult {
   std::size_t untangle_remaining = 0;
   OptimizeResult optimizer;
   FallbackCounts fallbacks;
-  HierarchyInfo hierarchy;  ///< when fallbacks.hierarchical_initial_map
+  HierarchyInfo hierarchy;                  ///< when fallbacks.hierarchical_initial_map
+  std::size_t sub_resolution_vertices = 0;  ///< removed before the map, put back after it
 };
 
 /// Parameterizes an outward-oriented, validated closed genus-0 mesh.

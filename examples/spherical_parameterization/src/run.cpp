@@ -138,6 +138,7 @@ RunResult run_parameterization(Mesh&& raw, const ReadInfo& info, PipelineOptions
                          {"ot_reruns", fb.ot_reruns},
                          {"laplacian_rounds", fb.laplacian_rounds},
                          {"free_smoothing", fb.free_smoothing}};
+  report["sub_resolution_vertices"] = R.sub_resolution_vertices;
   report["initial_map"] = metrics_json(result.initial);
   report["final_map"] = metrics_json(result.final_map);
   if (!options.vertex_factors.empty()) report["final_map"]["target_area_mean_abs"] = target_error;

@@ -17,6 +17,7 @@
 #include "pipeline.hpp"
 #include "report.hpp"
 #include "run.hpp"
+#include "sub_resolution.hpp"
 #include "support/scratch_directory.hpp"
 #include "test_meshes.hpp"
 
@@ -597,6 +598,66 @@ TEST(Stages, SubdivideKeepsOriginalVerticesFirst) {
   for (std::size_t i = 0; i < m.vertices.size(); ++i) EXPECT_EQ(f.vertices[i], m.vertices[i]);
 }
 
+// ------------------------------------------------------------- sub-resolution vertices
+TEST(SubResolution, RemovesTheSplitVerticesAndPutsThemBackOnTheirChords) {
+  const Mesh sphere = test::icosphere(3);
+  const Mesh m = test::sliver_sphere(3);
+  ASSERT_TRUE(validate(m).ok());
+  const std::size_t added = m.vertices.size() - sphere.vertices.size();
+  ASSERT_GT(added, 100u);
+  const MeshReduction r = remove_sub_resolution_vertices(m);
+  // exactly the added vertices go, and the icosphere's faces come back
+  EXPECT_EQ(r.removed.size(), added);
+  EXPECT_EQ(r.rounds, 1);
+  ASSERT_EQ(r.reduced.vertices.size(), sphere.vertices.size());
+  EXPECT_EQ(r.reduced.faces.size(), sphere.faces.size());
+  EXPECT_TRUE(validate(r.reduced).ok());
+  for (std::size_t i = 0; i < r.kept.size(); ++i) EXPECT_EQ(r.kept[i], static_cast<int>(i));
+  // the identity map of the reduced mesh puts every removed vertex on its chord's image: the
+  // normalised split point, so each of its faces is a positive sub-triangle with the mesh's ratio
+  const auto full = restore_sub_resolution_vertices(r, r.reduced.vertices, m.vertices.size());
+  double worst = 0;
+  for (const auto& removed : r.removed) {
+    const Vec3 expected = m.vertices[static_cast<std::size_t>(removed.vertex)].normalized();
+    worst = std::max(worst, (full[static_cast<std::size_t>(removed.vertex)] - expected).norm());
+  }
+  EXPECT_LT(worst, 1e-12);
+  EXPECT_EQ(count_flips(m, full), 0u);
+}
+
+TEST(SubResolution, LeavesOrdinaryMeshesAlone) {
+  // valence 3 and 4 with faces of similar area are not below any resolution
+  for (const Mesh& m : {test::icosphere(2), test::spiky_sphere(4, 6, 4.0, 0.25), test::bumpy_sphere(3, 12, 0.6, 11)}) {
+    const MeshReduction r = remove_sub_resolution_vertices(m);
+    EXPECT_TRUE(r.removed.empty());
+    EXPECT_TRUE(r.reduced.vertices.empty());
+  }
+}
+
+TEST(SubResolution, KeepsTheSurfaceValidWhenEveryVertexQualifies) {
+  // area_ratio 1: every vertex of valence 3 or 4 is a candidate; the refusals (a face or an
+  // edge that exists already, fewer than 5 vertices) keep the result a closed genus-0 surface
+  Mesh bipyramid;  // two apexes of valence 3 over a triangle
+  bipyramid.vertices = {{1, 0, 0}, {-0.5, 0.8, 0}, {-0.5, -0.8, 0}, {0, 0, 1}, {0, 0, -1}};
+  bipyramid.faces = {{0, 1, 3}, {1, 2, 3}, {2, 0, 3}, {1, 0, 4}, {2, 1, 4}, {0, 2, 4}};
+  Mesh octahedron;  // every vertex of valence 4
+  octahedron.vertices = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+  octahedron.faces = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4}, {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
+  for (const Mesh* m : {&bipyramid, &octahedron}) {
+    ASSERT_TRUE(validate(*m).ok());
+    const MeshReduction r = remove_sub_resolution_vertices(*m, 1.0);
+    ASSERT_FALSE(r.removed.empty());
+    EXPECT_GE(r.reduced.vertices.size(), 4u);
+    const Validation v = validate(r.reduced);
+    EXPECT_TRUE(v.ok()) << (v.defects.empty() ? std::string() : v.defects.front().message);
+    EXPECT_EQ(v.euler_characteristic, 2);
+    std::vector<Vec3> unit_map;
+    for (const auto& p : r.reduced.vertices) unit_map.push_back(p.normalized());
+    const auto full = restore_sub_resolution_vertices(r, unit_map, m->vertices.size());
+    for (const auto& p : full) EXPECT_NEAR(p.norm(), 1.0, 1e-12);
+  }
+}
+
 // -------------------------------------------------------------------------- pipeline
 #ifdef SPHPARAM_HAVE_SPHERE
 TEST(Pipeline, Icosphere) {
@@ -672,6 +733,17 @@ TEST(Report, FallbackActivationsAreCounted) {
   EXPECT_EQ(counts["total"].get<int>(), sum);
   EXPECT_GE(counts["ot_reruns"].get<int>(), 1);
   EXPECT_EQ(spiky["final_map"]["flips"].get<std::size_t>(), 0u);
+}
+
+TEST(Pipeline, SliversAndNeedlesMapWithoutFlips) {
+  // needles of 0.001 degrees and 1000:1 area ratios: mapped through the icosphere they refine
+  const Mesh m = test::sliver_sphere(4);
+  const auto r = run(m);
+  EXPECT_EQ(r.metrics.flips, 0u);
+  EXPECT_LT(r.metrics.area_mean_abs, 0.02);
+  EXPECT_EQ(r.pipeline.sub_resolution_vertices, m.vertices.size() - test::icosphere(4).vertices.size());
+  EXPECT_EQ(r.pipeline.fallbacks.total(), 0);
+  EXPECT_EQ(r.pipeline.ot.status, "converged") << r.pipeline.ot.message;
 }
 
 TEST(Pipeline, RandomBumps) {

@@ -81,4 +81,50 @@ Mesh bumpy_sphere(int level, int bumps, double amplitude, unsigned seed) {
   return m;
 }
 
+Mesh sliver_sphere(int level) {
+  const Mesh sphere = icosphere(level);
+  const auto at = [&](int i) { return sphere.vertices[static_cast<std::size_t>(i)]; };
+  Mesh m;
+  m.vertices = sphere.vertices;
+  std::map<std::pair<int, int>, std::vector<std::size_t>> edge_faces;
+  for (std::size_t f = 0; f < sphere.faces.size(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int a = sphere.faces[f][static_cast<std::size_t>(k)],
+                b = sphere.faces[f][static_cast<std::size_t>((k + 1) % 3)];
+      edge_faces[{std::min(a, b), std::max(a, b)}].push_back(f);
+    }
+  std::vector<char> used(sphere.faces.size(), 0);
+  int eligible = 0, splits = 0;
+  for (const auto& [edge, faces] : edge_faces) {
+    if (used[faces[0]] || used[faces[1]] || eligible++ % 3 != 0) continue;
+    const double t = splits++ % 2 == 0 ? 1e-3 : 2.5e-5;
+    const auto [a, b] = edge;
+    const int p = static_cast<int>(m.vertices.size());
+    m.vertices.push_back(at(a) + t * (at(b) - at(a)));
+    for (std::size_t f : faces) {
+      used[f] = 1;
+      Face tri = sphere.faces[f];
+      while (tri[0] != a) tri = {tri[1], tri[2], tri[0]};
+      if (tri[1] == b)  // (a, b, c) -> (a, p, c), (p, b, c)
+        m.faces.push_back({a, p, tri[2]}), m.faces.push_back({p, b, tri[2]});
+      else  // (a, c, b) -> (a, c, p), (p, c, b)
+        m.faces.push_back({a, tri[1], p}), m.faces.push_back({p, tri[1], b});
+    }
+  }
+  int whole = 0;
+  for (std::size_t f = 0; f < sphere.faces.size(); ++f) {
+    if (used[f]) continue;
+    const Face& t = sphere.faces[f];
+    if (whole++ % 7 != 0) {
+      m.faces.push_back(t);
+      continue;
+    }
+    const Vec3 middle = 0.5 * (at(t[0]) + at(t[1]));
+    const int p = static_cast<int>(m.vertices.size());
+    m.vertices.push_back(middle + 1e-5 * (at(t[2]) - middle));
+    m.faces.push_back({t[0], t[1], p}), m.faces.push_back({t[1], t[2], p}), m.faces.push_back({t[2], t[0], p});
+  }
+  return m;
+}
+
 }  // namespace sphparam::test

@@ -12,4 +12,10 @@ Mesh ellipsoid(int level, double a, double b, double c);
 Mesh spiky_sphere(int level, int count, double length, double width);
 /// Icosphere with random smooth bumps r = 1 + Σ a_k exp(-|x - c_k|²/s²) (fixed seed).
 Mesh bumpy_sphere(int level, int bumps, double amplitude, unsigned seed);
+/// Icosphere with sub-resolution vertices (the `slivers` case of scripts/hard_meshes.py): every
+/// third edge whose two faces are untouched is split on its chord, alternately at 1e-3 (1000:1
+/// area ratios) and at 2.5e-5 of its length (0.001° needles), and every seventh face left whole
+/// gets a point 1e-5 of its height inside its first edge (a flat sliver). The icosphere's
+/// vertices come first.
+Mesh sliver_sphere(int level);
 }  // namespace sphparam::test
