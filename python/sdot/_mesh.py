@@ -72,7 +72,7 @@ def sphere_parameterization(
         area times the factor.
     angle_weight : λ ≥ 0, the weight of the angle (MIPS) term against the area term in the final
         optimization (``--angle-weight``): 0 is purely area-preserving, the default 0.005 keeps
-        triangles well shaped, larger values trade area for angles (from about 50 the map leans
+        triangles well shaped, larger values trade area for angles (from about 10 the map leans
         towards conformal).
     sweeps : sweeps of the final optimization at most; None: 200, or 2000 when `angle_weight`
         is above 0.005 (``--sweeps``).

@@ -56,7 +56,7 @@ const char* usage =
     "  --angle-weight L       weight of the angle (MIPS) term against the area term in the\n"
     "                         final optimization, L >= 0 (default 0.005): 0 is purely\n"
     "                         area-preserving; larger L trades area for angles, and from about\n"
-    "                         50 the map leans towards conformal\n"
+    "                         10 the map leans towards conformal\n"
     "  --ply-ascii            write PLY as ascii (default binary little-endian)\n"
     "  --format FMT           OUTPUT's format whatever its name: off, obj, ply or freesurfer\n"
     "  --input-format FMT     INPUT's format whatever its name\n"

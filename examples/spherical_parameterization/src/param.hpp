@@ -98,7 +98,7 @@ struct OptimizeOptions {
   /// Sweeps at most; < 0: by the angle weight (sweep_limit).
   int max_sweeps = -1;
   /// λ ≥ 0, the weight of the MIPS (angle) term against the log² area term, per face: 0 is
-  /// purely area-preserving; from about 50 the area term no longer matters (conformal-leaning).
+  /// purely area-preserving; from about 10 the area term hardly counts (conformal-leaning).
   double angle_weight = default_angle_weight;
   double time_budget_s = 1e9;
   /// > 0: untangling mode, areas regularised as (A + sqrt(A² + 4ε²T²))/2 (no barrier, no MIPS).
