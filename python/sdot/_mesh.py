@@ -2,6 +2,7 @@
 parameterization (the same library code as the command)."""
 
 import json
+import math
 import os
 import sys
 import time
@@ -55,7 +56,8 @@ def sphere_parameterization(
     reweightings=40,
     optimize=True,
     ot_tolerance=0.05,
-    sweeps=200,
+    sweeps=None,
+    angle_weight=0.005,
     separation_threshold=5e-5,
     separation_delta=0.1,
     progress=False,
@@ -68,6 +70,12 @@ def sphere_parameterization(
     vertices : (n, 3) array; faces : (m, 3) integer array (either orientation, consistently).
     target_weights : optional (n,) positive factors: the region around a vertex gets its mesh
         area times the factor.
+    angle_weight : λ ≥ 0, the weight of the angle (MIPS) term against the area term in the final
+        optimization (``--angle-weight``): 0 is purely area-preserving, the default 0.005 keeps
+        triangles well shaped, larger values trade area for angles (from about 10 the map leans
+        towards conformal).
+    sweeps : sweeps of the final optimization at most; None: 200, or 2000 when `angle_weight`
+        is above 0.005 (``--sweeps``).
     progress : print the stage lines on stderr, or a callable that receives each line.
 
     Returns
@@ -84,16 +92,24 @@ def sphere_parameterization(
     faces = _int_array(faces, "faces")
     if target_weights is not None:
         target_weights = _float_array(target_weights, "target_weights", ndim=1)
+    try:
+        angle_weight = float(angle_weight)
+    except (TypeError, ValueError):
+        raise ValueError(f"angle_weight: expected a finite number >= 0, got {angle_weight!r}") from None
+    if not (math.isfinite(angle_weight) and angle_weight >= 0):
+        raise ValueError(f"angle_weight: expected a finite number >= 0, got {angle_weight!r}")
     options = {
         "refine": int(refine),
         "max_refine": int(max_refine),
         "reweightings": int(reweightings),
         "optimize": bool(optimize),
         "ot_tolerance": float(ot_tolerance),
-        "sweeps": int(sweeps),
+        "angle_weight": angle_weight,
         "separation_threshold": float(separation_threshold),
         "separation_delta": float(separation_delta),
     }
+    if sweeps is not None:
+        options["sweeps"] = int(sweeps)
     hook = None
     if callable(progress):
         hook = progress

@@ -3,6 +3,7 @@
 #include <pybind11/stl.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 
 #include "bindings.hpp"
@@ -123,10 +124,14 @@ py::tuple sphere_parameterization(const py::array_t<double>& vertices, const py:
       options.ot_tolerance = value.cast<double>();
     else if (key == "sweeps")
       options.optimizer.max_sweeps = value.cast<int>();
+    else if (key == "angle_weight")
+      options.optimizer.angle_weight = value.cast<double>();
     else
       throw sdot::InputError(key, "unknown option of sphere_parameterization");
   }
   if (!(options.ot_tolerance > 0)) throw sdot::InputError("ot_tolerance", "must be > 0");
+  if (!(std::isfinite(options.optimizer.angle_weight) && options.optimizer.angle_weight >= 0))
+    throw sdot::InputError("angle_weight", "must be a finite number >= 0");
   std::vector<double> factors;
   if (!vertex_factors.is_none()) {
     const Eigen::VectorXd values = *read_vector(vertex_factors, "target_weights", mesh.vertices.size());

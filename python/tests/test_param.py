@@ -69,3 +69,24 @@ def test_unreferenced_vertices_keep_their_rows():
     assert report["input_statistics"]["vertices_in_file"] == len(extra)
     reference, _ = sdot.sphere_parameterization(vertices, faces)
     assert np.array_equal(sphere[:-1], reference)
+
+
+def test_angle_weight_trades_area_for_angles():
+    vertices, faces = bumpy_mesh(3)
+    _, by_default = sdot.sphere_parameterization(vertices, faces)
+    sphere, conformal = sdot.sphere_parameterization(vertices, faces, angle_weight=20)
+    assert by_default["optimizer"]["angle_weight"] == 0.005 and by_default["optimizer"]["sweep_limit"] == 200
+    assert conformal["optimizer"]["angle_weight"] == 20 and conformal["optimizer"]["sweep_limit"] == 2000
+    assert np.all(signed_volumes(sphere, faces) > 0)
+    assert conformal["final_map"]["flips"] == 0
+    assert conformal["final_map"]["angle_mean_abs_deg"] < by_default["final_map"]["angle_mean_abs_deg"]
+    assert conformal["final_map"]["area_mean_abs"] > by_default["final_map"]["area_mean_abs"]
+    _, limited = sdot.sphere_parameterization(vertices, faces, angle_weight=20, sweeps=5)
+    assert limited["optimizer"]["sweep_limit"] == 5 and limited["optimizer"]["sweeps"] <= 5
+
+
+@pytest.mark.parametrize("bad", [-0.1, float("nan"), float("inf"), "abc", None])
+def test_bad_angle_weight_is_a_value_error(bad):
+    vertices, faces = bumpy_mesh(1)
+    with pytest.raises(ValueError, match="angle_weight"):
+        sdot.sphere_parameterization(vertices, faces, angle_weight=bad)

@@ -28,8 +28,8 @@ namespace {
 const char* usage =
     "usage: sdot-sphere-param INPUT -o OUTPUT [--report REPORT.json] [--svg HISTOGRAM.svg]\n"
     "                         [--target-weights FILE] [--refine N] [--max-refine N] [--reweightings N]\n"
-    "                         [--no-optimize] [--ot-tolerance T] [--sweeps N] [--ply-ascii]\n"
-    "                         [--format FMT] [--input-format FMT] [--radius R] [--quiet]\n"
+    "                         [--no-optimize] [--ot-tolerance T] [--sweeps N] [--angle-weight L]\n"
+    "                         [--ply-ascii] [--format FMT] [--input-format FMT] [--radius R] [--quiet]\n"
     "\n"
     "Maps a closed genus-0 triangle mesh onto the unit sphere without area distortion and without\n"
     "flipped faces (semi-discrete optimal transport with sdot's sphere geometry).\n"
@@ -53,7 +53,12 @@ const char* usage =
     "                         is below X*sqrt(4pi/N) (default 5e-5; 0 disables them)\n"
     "  --separation-delta D   separation radius of their representatives, times sqrt(4pi/N) (default 0.1)\n"
     "  --ot-tolerance T       max relative mass error of the OT solve (default 0.05)\n"
-    "  --sweeps N             sweeps of the area optimization at most (default 200)\n"
+    "  --sweeps N             sweeps of the area optimization at most (default 200; 2000 when\n"
+    "                         --angle-weight is above 0.005)\n"
+    "  --angle-weight L       weight of the angle (MIPS) term against the area term in the\n"
+    "                         final optimization, L >= 0 (default 0.005): 0 is purely\n"
+    "                         area-preserving; larger L trades area for angles, and from about\n"
+    "                         10 the map leans towards conformal\n"
     "  --ply-ascii            write PLY as ascii (default binary little-endian)\n"
     "  --format FMT           OUTPUT's format whatever its name: off, obj, ply or freesurfer\n"
     "  --input-format FMT     INPUT's format whatever its name\n"
@@ -188,6 +193,8 @@ int main(int argc, char** argv) {
       options.ot_tolerance = number_option(a, value("a number"), false);
     else if (a == "--sweeps")
       options.optimizer.max_sweeps = integer_option(a, value("a number"), 0);
+    else if (a == "--angle-weight")
+      options.optimizer.angle_weight = number_option(a, value("a number"), true);
     else if (a == "--format")
       output_format = format_option(a, value("a format"));
     else if (a == "--input-format")

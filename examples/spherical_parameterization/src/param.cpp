@@ -943,8 +943,16 @@ std::vector<std::vector<int>> colour_classes(const Topology& topo, std::size_t n
 
 }  // namespace
 
+int sweep_limit(const OptimizeOptions& options) {
+  if (options.max_sweeps >= 0) return options.max_sweeps;
+  return options.angle_weight > default_angle_weight ? 2000 : 200;
+}
+
 OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets,
                              std::vector<Vec3>& s, const OptimizeOptions& options) {
+  if (!(std::isfinite(options.angle_weight) && options.angle_weight >= 0))
+    throw std::invalid_argument("angle_weight: must be a finite number >= 0, got " +
+                                std::to_string(options.angle_weight));
   const auto start = std::chrono::steady_clock::now();
   const std::size_t nv = s.size();
   const std::vector<Corner> corners = corner_table(mesh, topo, targets);
@@ -975,7 +983,8 @@ OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::
   // moves are independent and run in parallel. Small classes run serially: a parallel region per
   // class and sweep costs more than it saves there, and much more when the machine is loaded.
   const std::vector<std::vector<int>> colours = colour_classes(topo, nv);
-  for (int sweep = 0; sweep < options.max_sweeps; ++sweep) {
+  const int max_sweeps = sweep_limit(options);
+  for (int sweep = 0; sweep < max_sweeps; ++sweep) {
     std::size_t visited = 0;
     std::fill(next_active.begin(), next_active.end(), 0);
     for (const auto& colour : colours) {
@@ -987,8 +996,7 @@ OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::
         if (!active[iv]) continue;
         ++visited;
         const Vec3 x = s[iv];
-        const LocalEval e0 =
-            local_energy(topo, corners, s, i, x, options.conformal_weight, true, options.regularization);
+        const LocalEval e0 = local_energy(topo, corners, s, i, x, options.angle_weight, true, options.regularization);
         if (!e0.valid) continue;
         const Vec3 t1 = (std::abs(x.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(x).normalized();
         const Vec3 t2 = x.cross(t1);
@@ -1004,7 +1012,7 @@ OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::
           const Eigen::Vector2d d = -Hd.ldlt().solve(grad2);
           const Vec3 y = (x + P * d).normalized();
           const LocalEval e1 =
-              local_energy(topo, corners, s, i, y, options.conformal_weight, false, options.regularization);
+              local_energy(topo, corners, s, i, y, options.angle_weight, false, options.regularization);
           if (e1.valid && e1.energy < e0.energy) {
             s[iv] = y;
             accepted = true;

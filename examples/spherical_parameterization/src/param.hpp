@@ -115,9 +115,16 @@ double untangling_energy(const ChartPatch& patch, const Eigen::MatrixX2d& x, dou
 /// `face_budget` (optional): face evaluations left to spend; lowered by those spent.
 bool untangle_chart_patch(const ChartPatch& patch, Eigen::MatrixX2d& x, std::size_t* face_budget = nullptr);
 
+/// λ of the MIPS term by default (`--angle-weight`): it keeps the triangles well shaped for a
+/// small cost in area.
+inline constexpr double default_angle_weight = 0.005;
+
 struct OptimizeOptions {
-  int max_sweeps = 200;
-  double conformal_weight = 0.005;  ///< λ of the MIPS term (keeps triangles well shaped)
+  /// Sweeps at most; < 0: by the angle weight (sweep_limit).
+  int max_sweeps = -1;
+  /// λ ≥ 0, the weight of the MIPS (angle) term against the log² area term, per face: 0 is
+  /// purely area-preserving; from about 10 the area term hardly counts (conformal-leaning).
+  double angle_weight = default_angle_weight;
   double time_budget_s = 1e9;
   /// > 0: untangling mode, areas regularised as (A + sqrt(A² + 4ε²T²))/2 (no barrier, no MIPS).
   double regularization = 0;
@@ -130,6 +137,12 @@ struct OptimizeOptions {
   /// The vertices active in the first sweep (one flag per vertex); empty: all of them.
   std::vector<char> start_active;
 };
+/// The sweep limit of `options`: max_sweeps when ≥ 0; otherwise 200 up to the default angle
+/// weight, and 2000 above it. A large λ moves the map from area-preserving towards conformal,
+/// which is a global change that vertex moves make slowly: on arm.off, λ = 5 still lowered the
+/// mean angle error from 26.4° at 200 sweeps to 21.0° at 1000 (it stops by itself at 1870).
+int sweep_limit(const OptimizeOptions& options);
+
 struct OptimizeResult {
   int sweeps = 0;
   std::size_t visits = 0;  ///< vertex updates tried

@@ -125,7 +125,9 @@ RunResult run_parameterization(Mesh&& raw, const ReadInfo& info, PipelineOptions
                   {"refinement_levels", R.ot.refine},
                   {"height_range", R.ot.height_range},
                   {"error_history", R.ot.error_history}};
-  report["optimizer"] = {{"sweeps", R.optimizer.sweeps},
+  report["optimizer"] = {{"angle_weight", options.optimizer.angle_weight},
+                         {"sweep_limit", sweep_limit(options.optimizer)},
+                         {"sweeps", R.optimizer.sweeps},
                          {"energy_start", R.optimizer.energy_start},
                          {"energy_end", R.optimizer.energy_end},
                          {"untangle_remaining_flips", R.untangle_remaining}};

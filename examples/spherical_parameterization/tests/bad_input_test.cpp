@@ -406,6 +406,11 @@ TEST(BadOptions, ExitWithCode2NamingTheOption) {
            {"--ot-tolerance abc", "--ot-tolerance: expected a positive number, got 'abc'"},
            {"--ot-tolerance nan", "--ot-tolerance"},
            {"--sweeps x", "--sweeps: expected an integer"},
+           {"--angle-weight -0.5", "--angle-weight: expected a non-negative number, got '-0.5'"},
+           {"--angle-weight nan", "--angle-weight: expected a non-negative number, got 'nan'"},
+           {"--angle-weight inf", "--angle-weight: expected a non-negative number, got 'inf'"},
+           {"--angle-weight 1e999", "--angle-weight: expected a non-negative number, got '1e999'"},
+           {"--angle-weight abc", "--angle-weight: expected a non-negative number, got 'abc'"},
            {"--radius 0", "--radius: expected a positive number"},
            {"--format stl", "--format: expected off, obj, ply or freesurfer, got 'stl'"}}) {
     const fs::path output = scratch() / "options_out.off";

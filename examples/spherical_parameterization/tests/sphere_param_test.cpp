@@ -8,9 +8,12 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
 #include <numeric>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 
 #include "mesh.hpp"
 #include "param.hpp"
@@ -590,6 +593,34 @@ TEST(Stages, UntanglingReportsAnEmptyKernel) {
   EXPECT_TRUE(x.allFinite());
 }
 
+TEST(AngleWeight, SweepLimitFollowsTheWeight) {
+  OptimizeOptions o;
+  EXPECT_EQ(sweep_limit(o), 200);  // the default weight
+  o.angle_weight = 0;
+  EXPECT_EQ(sweep_limit(o), 200);
+  o.angle_weight = 0.05;
+  EXPECT_EQ(sweep_limit(o), 2000);
+  o.max_sweeps = 7;  // an explicit limit wins
+  EXPECT_EQ(sweep_limit(o), 7);
+}
+
+TEST(AngleWeight, InvalidWeightIsRejected) {
+  const Mesh m = test::icosphere(1);
+  const Topology topo(m);
+  const std::vector<double> targets = face_targets(m, {});
+  for (double weight : {-1e-3, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    std::vector<Vec3> s = m.vertices;
+    OptimizeOptions o;
+    o.angle_weight = weight;
+    try {
+      optimize_area(m, topo, targets, s, o);
+      ADD_FAILURE() << "angle weight " << weight << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("angle_weight"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(Stages, SubdivideKeepsOriginalVerticesFirst) {
   const Mesh m = test::icosphere(1);
   const Mesh f = subdivide(m);
@@ -784,6 +815,31 @@ TEST(Pipeline, TargetWeightsEnlargeRegions) {
   EXPECT_NEAR(north / (4 * M_PI), 0.75, 0.05);
 }
 
+// --angle-weight: from area-preserving (0) through the default to conformal-leaning (50), on
+// a mesh with long spikes (non-convex), each end flip-free.
+TEST(AngleWeight, LargerWeightTradesAreaForAngles) {
+  const Mesh m = test::spiky_sphere(3, 4, 3.0, 0.35);
+  ASSERT_TRUE(validate(m).ok());
+  std::vector<RunResult> runs;
+  for (double weight : {0.0, default_angle_weight, 50.0}) {
+    PipelineOptions o;
+    o.optimizer.angle_weight = weight;
+    runs.push_back(run(m, o));
+    const Metrics& e = runs.back().metrics;
+    EXPECT_EQ(e.flips, 0u) << weight;
+    std::printf("angle weight %g: area mean|d| %.4f, angle %.2f deg, %d sweeps\n", weight, e.area_mean_abs,
+                e.angle_mean_abs_deg, runs.back().pipeline.optimizer.sweeps);
+  }
+  const Metrics &area_only = runs[0].metrics, &by_default = runs[1].metrics, &conformal = runs[2].metrics;
+  EXPECT_LT(area_only.area_mean_abs, by_default.area_mean_abs);
+  EXPECT_GT(area_only.angle_mean_abs_deg, by_default.angle_mean_abs_deg);
+  // the large weight moves clearly towards a conformal map, paying in area
+  EXPECT_LT(conformal.angle_mean_abs_deg, 0.6 * by_default.angle_mean_abs_deg);
+  EXPECT_GT(conformal.area_mean_abs, 5 * by_default.area_mean_abs);
+  // the default limit of 200 sweeps would have stopped it early
+  EXPECT_GT(runs[2].pipeline.optimizer.sweeps, 200);
+}
+
 TEST(Pipeline, RefinedDiracs) {
   PipelineOptions o;
   o.refine = 1;
@@ -813,6 +869,30 @@ TEST(Command, EndToEndWithReportAndSvg) {
                           "\"max_relative_mass_error\"", "\"times\"", "\"flips\": 0"})
     EXPECT_NE(text.find(key), std::string::npos) << key;
   EXPECT_TRUE(fs::exists(svg));
+}
+
+TEST(Command, AngleWeightIsUsedAndReported) {
+  const auto in = (temp_dir() / "angle_in.off").string();
+  write_mesh(in, test::bumpy_sphere(3, 6, 0.4, 2));
+  auto report_of = [&](const std::string& options) {
+    const auto out = (temp_dir() / "angle_out.off").string(), rep = (temp_dir() / "angle.json").string();
+    const std::string cmd =
+        std::string(SPHPARAM_COMMAND) + " " + in + " -o " + out + " --report " + rep + " --quiet " + options;
+    EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    return nlohmann::json::parse(read_text(rep));
+  };
+  const auto by_default = report_of("");
+  EXPECT_EQ(by_default["optimizer"]["angle_weight"].get<double>(), default_angle_weight);
+  EXPECT_EQ(by_default["optimizer"]["sweep_limit"].get<int>(), 200);
+  const auto conformal = report_of("--angle-weight 20");
+  EXPECT_EQ(conformal["optimizer"]["angle_weight"].get<double>(), 20.0);
+  EXPECT_EQ(conformal["optimizer"]["sweep_limit"].get<int>(), 2000);
+  EXPECT_EQ(conformal["final_map"]["flips"].get<int>(), 0);
+  EXPECT_LT(conformal["final_map"]["angle_mean_abs_deg"].get<double>(),
+            by_default["final_map"]["angle_mean_abs_deg"].get<double>());
+  EXPECT_GT(conformal["final_map"]["area_mean_abs"].get<double>(),
+            by_default["final_map"]["area_mean_abs"].get<double>());
+  EXPECT_EQ(report_of("--angle-weight 20 --sweeps 30")["optimizer"]["sweep_limit"].get<int>(), 30);
 }
 
 TEST(Command, FreeSurferInFreeSurferSphereOfRadius100Out) {
