@@ -820,7 +820,7 @@ TEST(Pipeline, TargetWeightsEnlargeRegions) {
 TEST(AngleWeight, LargerWeightTradesAreaForAngles) {
   const Mesh m = test::spiky_sphere(3, 4, 3.0, 0.35);
   ASSERT_TRUE(validate(m).ok());
-  std::vector<RunResult> runs;
+  std::vector<decltype(run(m))> runs;  // the test's RunResult, not run.hpp's
   for (double weight : {0.0, default_angle_weight, 50.0}) {
     PipelineOptions o;
     o.optimizer.angle_weight = weight;
