@@ -55,10 +55,11 @@ def run_measured(command, env=None):
     return stdout, wall
 
 
-def wall_and_peak_rss(command):
+def wall_and_peak_rss(command, ok_codes=(0,)):
     """Wall seconds and peak RSS in MB (None without GNU time) of one run. The RSS comes from
     /usr/bin/time: a child forked from this interpreter would report the interpreter's own
-    high-water mark from before exec whenever that is larger."""
+    high-water mark from before exec whenever that is larger. Exit statuses outside `ok_codes`
+    raise."""
     with tempfile.NamedTemporaryFile("r") as rss_file:
         gnu_time = pathlib.Path("/usr/bin/time")
         prefix = [str(gnu_time), "-f", "%M", "-o", rss_file.name] if gnu_time.exists() else []
@@ -66,7 +67,7 @@ def wall_and_peak_rss(command):
         process = subprocess.run(prefix + [str(part) for part in command], stdout=subprocess.DEVNULL,
                                  stderr=subprocess.PIPE, text=True)
         wall = time.perf_counter() - start
-        if process.returncode != 0:
+        if process.returncode not in ok_codes:
             raise RuntimeError(f"{shell(command)} exited with {process.returncode}: {process.stderr.strip()}")
         rss = rss_file.read().strip().splitlines()
     return wall, (int(rss[-1]) / 1024 if prefix and rss else None)
@@ -285,6 +286,49 @@ def param_table(rows):
     return markdown_table(columns, cells)
 
 
+# ----------------------------------------------------------------------------------- hard shapes
+
+HARD_CASES = [("slivers", [25_000, 60_000, 120_000]), ("folds", [25_000, 60_000, 120_000]),
+              ("spiky", [25_000, 60_000, 120_000]), ("tubes", [25_000])]
+
+
+def hard_rows(build):
+    """sdot-sphere-param on the generated hard shapes (scripts/hard_meshes.py); exit status 3
+    (flipped faces left) is a result here, not an error."""
+    binary = build / "bin" / "sdot-sphere-param"
+    rows = []
+    with tempfile.TemporaryDirectory() as scratch:
+        for case, sizes in HARD_CASES:
+            command = [sys.executable, ROOT / "scripts" / "hard_meshes.py", scratch, "--cases", case, "--sizes"]
+            subprocess.run(command + [str(size) for size in sizes], check=True, stdout=subprocess.DEVNULL)
+            for size in sizes:
+                path = pathlib.Path(scratch) / f"{case}_{size // 1000}k.off"
+                report_path = path.with_suffix(".json")
+                wall, rss = wall_and_peak_rss([binary, path, "-o", path.with_suffix(".out.off"), "--report",
+                                               report_path, "--quiet"], ok_codes=(0, 3))
+                report = json.loads(report_path.read_text())
+                rows.append(dict(case=case, vertices=report["input_statistics"]["vertices"], wall=wall, rss=rss,
+                                 report=report))
+                log(f"hard {path.stem:12s} {wall:7.2f} s  flips {report['final_map']['flips']}")
+    return rows
+
+
+def hard_table(rows):
+    columns = ["case", "V", "time (s)", "budget (s)", "peak RSS (MB)", "area mean\\|d\\|", "angle (°)", "flips",
+               "fallbacks", "sub-resolution vertices", "slowest stages (s)"]
+    cells = []
+    for r in rows:
+        report, m = r["report"], r["report"]["final_map"]
+        stages = sorted(((t, name[:-2]) for name, t in report["times"].items()
+                         if name not in ("total_s", "compute_s", "read_s", "write_s")), reverse=True)[:2]
+        budget = 3 * r["vertices"] / 100_000 + 0.5
+        cells.append([r["case"], f"{r['vertices']:,}", f"**{r['wall']:.2f}**", f"{budget:.2f}",
+                      "–" if r["rss"] is None else f"{r['rss']:.0f}", f"{m['area_mean_abs']:.4f}",
+                      f"{m['angle_mean_abs_deg']:.1f}", f"**{m['flips']}**", str(report["fallbacks"]["total"]),
+                      f"{report['sub_resolution_vertices']:,}", ", ".join(f"{name} {t:.2f}" for t, name in stages)])
+    return markdown_table(columns, cells)
+
+
 # ------------------------------------------------------------------------------------- the document
 
 
@@ -301,8 +345,8 @@ def main():
     parser.add_argument("--build", default="build")
     parser.add_argument("--doc", default="docs/benchmarks.md")
     parser.add_argument("--plot", default="docs/images/scaling.png")
-    parser.add_argument("--sections", nargs="+", default=["core", "python", "densities", "param"],
-                        choices=["core", "python", "densities", "param"])
+    parser.add_argument("--sections", nargs="+", default=["core", "python", "densities", "param", "hard"],
+                        choices=["core", "python", "densities", "param", "hard"])
     parser.add_argument("--sizes", type=int, nargs="+", help="core-solve sizes (default 1e3 … 1e6)")
     parser.add_argument("--large", action="store_true",
                         help="add N = 1e7 to the core solve (plane and sphere: about 8 minutes and 11 GB more)")
@@ -346,6 +390,11 @@ def main():
             blocks["param"] = param_table(rows)
         else:
             log(f"{meshes} not found: parameterization table skipped")
+
+    if "hard" in args.sections and not args.quick:
+        rows = hard_rows(build)
+        raw["hard"] = [{k: v for k, v in r.items() if k != "report"} | {"times": r["report"]["times"]} for r in rows]
+        blocks["hard"] = hard_table(rows)
 
     if args.json:
         pathlib.Path(args.json).write_text(json.dumps(raw, indent=1))
