@@ -793,26 +793,29 @@ TEST(Pipeline, InwardMeshKeepsOrientation) {
 }
 
 TEST(Pipeline, TargetWeightsEnlargeRegions) {
-  const Mesh m = test::icosphere(3);
-  PipelineOptions o;
-  o.vertex_factors.resize(m.vertices.size());
-  for (std::size_t i = 0; i < m.vertices.size(); ++i) o.vertex_factors[i] = m.vertices[i].z() > 0 ? 3.0 : 1.0;
-  const auto p = parameterize(m, o);
-  EXPECT_EQ(count_flips(m, p.sphere), 0u);
-  const auto targets = face_targets(m, o.vertex_factors);
-  EXPECT_LT(target_area_error(m, p.sphere, targets), 0.05);
-  // the northern half now covers about 3/4 of the sphere
-  double north = 0;
-  for (std::size_t f = 0; f < m.faces.size(); ++f) {
-    const auto& t = m.faces[f];
-    const Vec3 c = m.vertices[static_cast<std::size_t>(t[0])] + m.vertices[static_cast<std::size_t>(t[1])] +
-                   m.vertices[static_cast<std::size_t>(t[2])];
-    if (c.z() > 0)
-      north +=
-          spherical_triangle_area(p.sphere[static_cast<std::size_t>(t[0])], p.sphere[static_cast<std::size_t>(t[1])],
-                                  p.sphere[static_cast<std::size_t>(t[2])]);
+  // also through the sub-resolution vertices, whose factors are left out of the reduced mesh
+  for (const Mesh& m : {test::icosphere(3), test::sliver_sphere(3)}) {
+    PipelineOptions o;
+    o.vertex_factors.resize(m.vertices.size());
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) o.vertex_factors[i] = m.vertices[i].z() > 0 ? 3.0 : 1.0;
+    const auto p = parameterize(m, o);
+    EXPECT_EQ(count_flips(m, p.sphere), 0u);
+    const auto targets = face_targets(m, o.vertex_factors);
+    EXPECT_LT(target_area_error(m, p.sphere, targets), 0.05);
+    // the northern half now covers about 3/4 of the sphere
+    double north = 0;
+    for (std::size_t f = 0; f < m.faces.size(); ++f) {
+      const auto& t = m.faces[f];
+      const Vec3 c = m.vertices[static_cast<std::size_t>(t[0])] + m.vertices[static_cast<std::size_t>(t[1])] +
+                     m.vertices[static_cast<std::size_t>(t[2])];
+      if (c.z() > 0)
+        north +=
+            spherical_triangle_area(p.sphere[static_cast<std::size_t>(t[0])], p.sphere[static_cast<std::size_t>(t[1])],
+                                    p.sphere[static_cast<std::size_t>(t[2])]);
+    }
+    EXPECT_NEAR(north / (4 * M_PI), 0.75, 0.05);
+    EXPECT_EQ(p.sub_resolution_vertices, m.vertices.size() - test::icosphere(3).vertices.size());
   }
-  EXPECT_NEAR(north / (4 * M_PI), 0.75, 0.05);
 }
 
 // --angle-weight: from area-preserving (0) through the default to conformal-leaning (50), on
