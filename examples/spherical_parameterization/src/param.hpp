@@ -61,8 +61,10 @@ struct HierarchyInfo {
 /// about e^(-0.58 L/r)). Levels of independent edge collapses (shortest edges first, removed
 /// vertices 3 edges apart) reduce the mesh to about `base_vertices`, where a tube has few
 /// rings; that mesh is mapped by Tutte and area-corrected; then every level puts its removed
-/// vertices back inside the wedge of their collapsed edge (no face inverted) and runs a few
-/// sweeps of the flip-free area optimization, so no level is crushed.
+/// vertices back inside the wedge of their collapsed edge (where it finds a place that inverts
+/// none of its faces: `HierarchyInfo::unplaced` counts the others) and runs a few sweeps of the
+/// flip-free area optimization. Not yet enough for tubes: their base map and insertions fold
+/// (docs/spherical_parameterization.md, "Hard shapes").
 std::vector<Vec3> hierarchical_sphere_map(const Mesh& mesh, std::size_t base_vertices = 200,
                                           HierarchyInfo* info = nullptr);
 
