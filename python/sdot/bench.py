@@ -10,6 +10,7 @@ it, and `python_overhead_s` = wall_s − time_s: what the package adds to the C+
 
 import argparse
 import json
+import os
 import sys
 import time
 
@@ -38,6 +39,7 @@ def run(geometry, n, seed=1, tolerance=1e-6, linear_solver="auto", progress=Fals
         "assembly_s": t["assembly_s"],
         "linear_solve_s": t["linear_solve_s"],
         "peak_rss_mb": _sdot.peak_rss_mb(),
+        "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY", "default"),
         "wall_s": wall,
         "python_overhead_s": wall - t["total_s"],
     }

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
@@ -207,7 +208,9 @@ json bench_json(const std::string& geometry, std::size_t n, const Result<Point>&
           {"diagram_s", s.timings.diagram_s},
           {"assembly_s", s.timings.assembly_s},
           {"linear_solve_s", s.timings.linear_solve_s},
-          {"peak_rss_mb", peak_resident_memory_mb()}};
+          {"peak_rss_mb", peak_resident_memory_mb()},
+          // how the OpenMP threads waited (the command sets passive unless told otherwise)
+          {"omp_wait_policy", std::getenv("OMP_WAIT_POLICY") ? std::getenv("OMP_WAIT_POLICY") : "default"}};
 }
 
 /// The bench density of the unit square (plane and torus): a k × k grid of squares, two triangles

@@ -10,6 +10,7 @@
 
 #include "common.hpp"
 #include "registry.hpp"
+#include "sdot/detail/passive_openmp_waits.hpp"
 #include "sdot/output_file.hpp"
 
 namespace {
@@ -167,6 +168,7 @@ int run_demo(const sdot::cli::Registry& registry, int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  sdot::detail::rerun_with_passive_openmp_waits(argv, "SDOT_COMMAND_REEXEC");
 #if defined(__GLIBC__)
   // Arrays of 1 MB and more come straight from the system and go back to it when freed. glibc
   // otherwise raises that threshold to the size of each large array freed (up to 32 MB), and the

@@ -32,12 +32,17 @@ std::string slurp(const fs::path& path) {
   return sdot::testing::read_text(path);
 }
 
-Run run(const std::string& arguments) {
+/// The command with `arguments`, after `prefix` (e.g. "env VAR=value"; may be empty).
+Run run_in(const std::string& prefix, const std::string& arguments) {
   const fs::path dir = scratch();
-  const std::string command = std::string(SDOT_COMMAND) + " " + arguments + " > " + (dir / "stdout").string() + " 2> " +
-                              (dir / "stderr").string();
+  const std::string command = prefix + " " + std::string(SDOT_COMMAND) + " " + arguments + " > " +
+                              (dir / "stdout").string() + " 2> " + (dir / "stderr").string();
   const int status = std::system(command.c_str());
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "stdout"), slurp(dir / "stderr")};
+}
+
+Run run(const std::string& arguments) {
+  return run_in("", arguments);
 }
 
 std::string fmt_pair(double x, double y) {
@@ -404,6 +409,19 @@ TEST(Cli, BenchPrintsOneJsonLine) {
     EXPECT_TRUE(line.contains(key)) << key;
   EXPECT_EQ(line["n"], 500);
   EXPECT_LE(line["max_relative_mass_error"].get<double>(), 1e-8);
+}
+
+TEST(Cli, OpenMPThreadsWaitPassivelyUnlessToldOtherwise) {
+  // spinning waits cost a loaded machine much of its time (sdot::detail::rerun_with_passive_openmp_waits)
+  const auto policy_of = [](const std::string& environment) {
+    const auto r = run_in(environment, "bench --geometry plane --n 300 --quiet");
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return json::parse(r.out)["omp_wait_policy"].get<std::string>();
+  };
+#ifdef _OPENMP
+  EXPECT_EQ(policy_of("env -u OMP_WAIT_POLICY -u GOMP_SPINCOUNT -u SDOT_COMMAND_REEXEC"), "passive");
+#endif
+  EXPECT_EQ(policy_of("env OMP_WAIT_POLICY=active"), "active");
 }
 
 TEST(Cli, DemoWritesResultsAndPictures) {

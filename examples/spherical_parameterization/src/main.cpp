@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <sdot/detail/passive_openmp_waits.hpp>
 #include <sdot/error.hpp>
 #include <sdot/output_file.hpp>
 #include <string>
@@ -130,19 +131,8 @@ std::string format_option(const std::string& option, const std::string& text) {
 }  // namespace
 
 int main(int argc, char** argv) {
-#if defined(__linux__) && defined(_OPENMP)
-  // OpenMP threads waiting for work sleep instead of spinning (OMP_WAIT_POLICY=passive), unless
-  // the environment says otherwise. With a core taken by another process, spinning threads take
-  // the time the working ones need: under such load igea_134k took 12.5 s with libgomp's default
-  // (spinning about 3 ms before sleeping) and 3.6-4.2 s with passive waits. libgomp reads its
-  // environment before main, so the command runs itself again with it set.
-  if (!std::getenv("OMP_WAIT_POLICY") && !std::getenv("GOMP_SPINCOUNT") && !std::getenv("SDOT_SPHERE_PARAM_REEXEC")) {
-    setenv("OMP_WAIT_POLICY", "passive", 1);
-    setenv("SDOT_SPHERE_PARAM_REEXEC", "1", 1);  // never twice, whatever libgomp does
-    execv("/proc/self/exe", argv);
-    // exec failed: carry on with libgomp's defaults
-  }
-#endif
+  // under load igea_134k took 12.5 s with libgomp's spinning waits and 3.6-4.2 s with passive ones
+  sdot::detail::rerun_with_passive_openmp_waits(argv, "SDOT_SPHERE_PARAM_REEXEC");
 #if defined(__GLIBC__)
   // The stages allocate and free arrays of several MB many times (diagrams, Newton matrices,
   // factors, per-stage copies of the map). By default glibc maps many of them afresh and gives
