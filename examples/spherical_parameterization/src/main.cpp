@@ -1,5 +1,4 @@
 // sdot-sphere-param: area-preserving spherical parameterization of a closed genus-0 mesh.
-#include <unistd.h>
 #include <cerrno>
 #include <chrono>
 #include <cmath>

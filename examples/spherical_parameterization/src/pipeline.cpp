@@ -288,20 +288,29 @@ double target_area_error(const Mesh& mesh, const std::vector<Vec3>& s, const std
   return n ? sum / static_cast<double>(n) : std::nan("");
 }
 
+static void say_progress(const PipelineOptions& options, const std::string& line) {
+  if (options.progress) options.progress(line);
+}
+
+/// Appends the record of a stage (area error of `s` against `targets`, flips) and prints its line.
+static void record_stage(PipelineResult& R, const Mesh& mesh, const std::vector<double>& targets,
+                         const std::vector<Vec3>& s, const PipelineOptions& options, const std::string& name,
+                         double seconds, std::string note) {
+  StageRecord r{name, seconds, target_area_error(mesh, s, targets), count_flips(mesh, s), std::move(note)};
+  say_progress(options, name + ": " + fmt_g(seconds) + " s, area mean|d| " + fmt_g(r.area_mean_abs) + ", flips " +
+                            std::to_string(r.flips) + (r.note.empty() ? "" : " (" + r.note + ")"));
+  R.stages.push_back(std::move(r));
+}
+
 /// The pipeline on a mesh without sub-resolution vertices (or with them kept).
 static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options) {
   PipelineResult R;
-  auto say = [&](const std::string& s) {
-    if (options.progress) options.progress(s);
-  };
+  auto say = [&](const std::string& s) { say_progress(options, s); };
   const Topology topo(mesh);
   const auto targets = face_targets(mesh, options.vertex_factors);
   const auto masses = vertex_targets(mesh, targets);
   auto record = [&](const std::string& name, double seconds, const std::vector<Vec3>& s, std::string note = "") {
-    StageRecord r{name, seconds, target_area_error(mesh, s, targets), count_flips(mesh, s), std::move(note)};
-    say(name + ": " + fmt_g(seconds) + " s, area mean|d| " + fmt_g(r.area_mean_abs) + ", flips " +
-        std::to_string(r.flips) + (r.note.empty() ? "" : " (" + r.note + ")"));
-    R.stages.push_back(std::move(r));
+    record_stage(R, mesh, targets, s, options, name, seconds, std::move(note));
   };
 
   // 1. Initial map: Tutte embedding, inverse stereographic projection, Möbius balancing.
@@ -531,12 +540,9 @@ PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
                                       : MeshReduction{};
   if (reduction.removed.empty()) return map_mesh(mesh, options);
   const double reduction_seconds = since(t);
-  auto say = [&](const std::string& s) {
-    if (options.progress) options.progress(s);
-  };
-  say("sub-resolution vertices: " + std::to_string(reduction.removed.size()) + " removed in " +
-      std::to_string(reduction.rounds) + " round(s) (" + fmt_g(reduction_seconds) + " s), mapping " +
-      std::to_string(reduction.reduced.vertices.size()) + " vertices");
+  say_progress(options, "sub-resolution vertices: " + std::to_string(reduction.removed.size()) + " removed in " +
+                            std::to_string(reduction.rounds) + " round(s) (" + fmt_g(reduction_seconds) +
+                            " s), mapping " + std::to_string(reduction.reduced.vertices.size()) + " vertices");
   // The reduced mesh is mapped without the final optimization, which runs once on the full mesh.
   PipelineOptions reduced_options = options;
   reduced_options.optimize = false;
@@ -552,20 +558,14 @@ PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
   R.sphere = restore_sub_resolution_vertices(reduction, R.sphere, nv);
   const Topology topo(mesh);
   const auto targets = face_targets(mesh, options.vertex_factors);
-  auto record = [&](const std::string& name, double seconds, std::string note) {
-    StageRecord r{name, seconds, target_area_error(mesh, R.sphere, targets), count_flips(mesh, R.sphere),
-                  std::move(note)};
-    say(name + ": " + fmt_g(seconds) + " s, area mean|d| " + fmt_g(r.area_mean_abs) + ", flips " +
-        std::to_string(r.flips) + (r.note.empty() ? "" : " (" + r.note + ")"));
-    R.stages.push_back(std::move(r));
-  };
-  R.untangle_remaining = count_flips(mesh, R.sphere);
-  record("restore_sub_resolution", reduction_seconds + since(t),
-         std::to_string(reduction.removed.size()) + " vertices put back at their barycentric places");
+  record_stage(R, mesh, targets, R.sphere, options, "restore_sub_resolution", reduction_seconds + since(t),
+               std::to_string(reduction.removed.size()) + " vertices put back at their barycentric places");
+  R.untangle_remaining = R.stages.back().flips;
   if (options.optimize && R.untangle_remaining == 0) {
     t = Clock::now();
     R.optimizer = optimize_area(mesh, topo, targets, R.sphere, options.optimizer);
-    record("area_optimization", since(t), std::to_string(R.optimizer.sweeps) + " sweeps");
+    record_stage(R, mesh, targets, R.sphere, options, "area_optimization", since(t),
+                 std::to_string(R.optimizer.sweeps) + " sweeps");
   }
   return R;
 }
