@@ -1223,7 +1223,8 @@ std::vector<Vec3> hierarchical_sphere_map(const Mesh& mesh, std::size_t base_ver
       for (int x : level.faces[f])
         if (slot[u(x)] >= 0) faces_of[u(slot[u(x)])].push_back(static_cast<int>(f));
     for (std::size_t c = 0; c < level.collapses.size(); ++c) {
-      const auto [v, w] = level.collapses[c];
+      // plain names, not a structured binding: clang 14 cannot capture one in the lambda below
+      const int v = level.collapses[c].first, w = level.collapses[c].second;
       const Vec3 p = s[u(w)];
       Vec3 left = Vec3::Zero(), right = Vec3::Zero();  // third vertices of (w, v, left), (v, w, right)
       double reach = 1e300;
