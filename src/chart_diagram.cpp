@@ -95,6 +95,32 @@ Adjacency triangles_to_adjacency(const std::vector<std::array<int, 3>>& triangle
   return adjacency;
 }
 
+// The same for the triangles of a closed, consistently oriented surface: each edge a–b is a→b in
+// exactly one of its two triangles, so recording a→b alone lists every neighbour once, and the
+// lists need no de-duplication (half the entries of triangles_to_adjacency, sorted on both
+// cores). Falls back to triangles_to_adjacency should a list hold a neighbour twice.
+Adjacency oriented_surface_adjacency(const std::vector<std::array<int, 3>>& triangles, std::size_t count) {
+  Adjacency adjacency;
+  adjacency.offsets.assign(count + 1, 0);
+  for (const auto& t : triangles)
+    for (int v : t) ++adjacency.offsets[v + 1];
+  for (std::size_t i = 0; i < count; ++i) adjacency.offsets[i + 1] += adjacency.offsets[i];
+  adjacency.neighbors.resize(adjacency.offsets[count]);
+  std::vector<int> fill(adjacency.offsets.begin(), adjacency.offsets.end() - 1);
+  for (const auto& t : triangles)
+    for (int k = 0; k < 3; ++k) adjacency.neighbors[fill[t[k]]++] = t[(k + 1) % 3];
+  const auto vertices = static_cast<std::ptrdiff_t>(count);
+  bool repeated = false;
+#pragma omp parallel for schedule(static, 4096) reduction(|| : repeated)
+  for (std::ptrdiff_t i = 0; i < vertices; ++i) {
+    auto first = adjacency.neighbors.begin() + adjacency.offsets[i],
+         last = adjacency.neighbors.begin() + adjacency.offsets[i + 1];
+    std::sort(first, last);
+    if (std::adjacent_find(first, last) != last) repeated = true;
+  }
+  return repeated ? triangles_to_adjacency(triangles, count) : adjacency;
+}
+
 // Orients Qhull's triangles counter-clockwise seen from outside (the origin is inside) and
 // links the opposite half-edges; empty when the triangles do not form a closed 2-manifold.
 HullTriangulation oriented_surface(std::span<const Vec3> points, std::vector<std::array<int, 3>> triangles) {
@@ -929,7 +955,7 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
     if (!(length > 0)) return std::nullopt;
     hull.max_facet_offset = std::max(hull.max_facet_offset, -normal.dot(surface.point(t[0])) / length);
   }
-  hull.edges = triangles_to_adjacency(start.triangles, n);
+  hull.edges = oriented_surface_adjacency(start.triangles, n);
   hull.surface = std::move(start);
   return hull;
 }
