@@ -63,12 +63,17 @@ void run_qhull(std::span<const Vec3> points, Visit&& visit) {
   }
 }
 
-// Turns per-facet vertex triples into CSR adjacency (sorted, unique) for `count` points.
-Adjacency triangles_to_adjacency(const std::vector<std::array<int, 3>>& triangles, std::size_t count) {
+// Turns per-facet vertex triples into CSR adjacency (sorted, unique) for `count` points. On a
+// closed, consistently oriented surface (`oriented_surface`) each edge a–b is a→b in exactly one
+// of its two triangles, so recording a→b alone lists every neighbour once: half the entries, and
+// nothing to de-duplicate (should a list hold a neighbour twice all the same, both directions
+// are recorded instead). The lists are sorted on all cores.
+Adjacency triangles_to_adjacency(const std::vector<std::array<int, 3>>& triangles, std::size_t count,
+                                 bool oriented_surface = false) {
   Adjacency adjacency;
   adjacency.offsets.assign(count + 1, 0);
   for (const auto& t : triangles)
-    for (int v : t) adjacency.offsets[v + 1] += 2;
+    for (int v : t) adjacency.offsets[v + 1] += oriented_surface ? 1 : 2;
   for (std::size_t i = 0; i < count; ++i) adjacency.offsets[i + 1] += adjacency.offsets[i];
   adjacency.neighbors.resize(adjacency.offsets[count]);
   std::vector<int> fill(adjacency.offsets.begin(), adjacency.offsets.end() - 1);
@@ -76,16 +81,25 @@ Adjacency triangles_to_adjacency(const std::vector<std::array<int, 3>>& triangle
     for (int k = 0; k < 3; ++k) {
       const int a = t[k], b = t[(k + 1) % 3];
       adjacency.neighbors[fill[a]++] = b;
-      adjacency.neighbors[fill[b]++] = a;
+      if (!oriented_surface) adjacency.neighbors[fill[b]++] = a;
     }
-  // Sort and de-duplicate each list in place, then compact.
+  const auto vertices = static_cast<std::ptrdiff_t>(count);
+  bool repeated = false;
+#pragma omp parallel for schedule(static, 4096) reduction(|| : repeated)
+  for (std::ptrdiff_t i = 0; i < vertices; ++i) {
+    const auto first = adjacency.neighbors.begin() + adjacency.offsets[i];
+    const auto last = adjacency.neighbors.begin() + adjacency.offsets[i + 1];
+    std::sort(first, last);
+    if (std::adjacent_find(first, last) != last) repeated = true;
+  }
+  if (oriented_surface) return repeated ? triangles_to_adjacency(triangles, count) : adjacency;
+  // De-duplicate each sorted list in place, then compact.
   std::size_t write = 0;
   int begin = adjacency.offsets[0];
   for (std::size_t i = 0; i < count; ++i) {
     const int end = adjacency.offsets[i + 1];
-    auto first = adjacency.neighbors.begin() + begin, last = adjacency.neighbors.begin() + end;
-    std::sort(first, last);
-    last = std::unique(first, last);
+    const auto first = adjacency.neighbors.begin() + begin;
+    const auto last = std::unique(first, adjacency.neighbors.begin() + end);
     adjacency.offsets[i] = static_cast<int>(write);
     for (auto it = first; it != last; ++it) adjacency.neighbors[write++] = *it;
     begin = end;
@@ -93,32 +107,6 @@ Adjacency triangles_to_adjacency(const std::vector<std::array<int, 3>>& triangle
   adjacency.offsets[count] = static_cast<int>(write);
   adjacency.neighbors.resize(write);
   return adjacency;
-}
-
-// The same for the triangles of a closed, consistently oriented surface: each edge a–b is a→b in
-// exactly one of its two triangles, so recording a→b alone lists every neighbour once, and the
-// lists need no de-duplication (half the entries of triangles_to_adjacency, sorted on both
-// cores). Falls back to triangles_to_adjacency should a list hold a neighbour twice.
-Adjacency oriented_surface_adjacency(const std::vector<std::array<int, 3>>& triangles, std::size_t count) {
-  Adjacency adjacency;
-  adjacency.offsets.assign(count + 1, 0);
-  for (const auto& t : triangles)
-    for (int v : t) ++adjacency.offsets[v + 1];
-  for (std::size_t i = 0; i < count; ++i) adjacency.offsets[i + 1] += adjacency.offsets[i];
-  adjacency.neighbors.resize(adjacency.offsets[count]);
-  std::vector<int> fill(adjacency.offsets.begin(), adjacency.offsets.end() - 1);
-  for (const auto& t : triangles)
-    for (int k = 0; k < 3; ++k) adjacency.neighbors[fill[t[k]]++] = t[(k + 1) % 3];
-  const auto vertices = static_cast<std::ptrdiff_t>(count);
-  bool repeated = false;
-#pragma omp parallel for schedule(static, 4096) reduction(|| : repeated)
-  for (std::ptrdiff_t i = 0; i < vertices; ++i) {
-    auto first = adjacency.neighbors.begin() + adjacency.offsets[i],
-         last = adjacency.neighbors.begin() + adjacency.offsets[i + 1];
-    std::sort(first, last);
-    if (std::adjacent_find(first, last) != last) repeated = true;
-  }
-  return repeated ? triangles_to_adjacency(triangles, count) : adjacency;
 }
 
 // Orients Qhull's triangles counter-clockwise seen from outside (the origin is inside) and
@@ -955,7 +943,7 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
     if (!(length > 0)) return std::nullopt;
     hull.max_facet_offset = std::max(hull.max_facet_offset, -normal.dot(surface.point(t[0])) / length);
   }
-  hull.edges = oriented_surface_adjacency(start.triangles, n);
+  hull.edges = triangles_to_adjacency(start.triangles, n, true);
   hull.surface = std::move(start);
   return hull;
 }

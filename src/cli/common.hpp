@@ -199,6 +199,7 @@ SolveOutput solve_problem(const G& geometry, const std::optional<PiecewiseDensit
 template <class Point>
 json bench_json(const std::string& geometry, std::size_t n, const Result<Point>& result) {
   const Summary& s = result.summary;
+  const char* wait_policy = std::getenv("OMP_WAIT_POLICY");  // the command sets passive unless told otherwise
   return {{"geometry", geometry},
           {"n", n},
           {"status", std::string(to_string(s.status))},
@@ -209,8 +210,7 @@ json bench_json(const std::string& geometry, std::size_t n, const Result<Point>&
           {"assembly_s", s.timings.assembly_s},
           {"linear_solve_s", s.timings.linear_solve_s},
           {"peak_rss_mb", peak_resident_memory_mb()},
-          // how the OpenMP threads waited (the command sets passive unless told otherwise)
-          {"omp_wait_policy", std::getenv("OMP_WAIT_POLICY") ? std::getenv("OMP_WAIT_POLICY") : "default"}};
+          {"omp_wait_policy", wait_policy ? wait_policy : "default"}};
 }
 
 /// The bench density of the unit square (plane and torus): a k × k grid of squares, two triangles
