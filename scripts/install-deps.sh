@@ -8,7 +8,7 @@ packages=(cmake g++ make libeigen3-dev libboost-dev libqhull-dev libcgal-dev lib
           python3-venv python3-nibabel  # nibabel: the FreeSurfer cross-check (python/tests/test_freesurfer.py)
           python3-dask python3-distributed  # sdot.batch (python/sdot/batch.py, docs/scaling.md)
           doxygen
-          clang-14 libfuzzer-14-dev libomp-14-dev)  # scripts/fuzz.sh (libFuzzer harnesses, tests/fuzz)
+          clang-14 libfuzzer-14-dev libomp-14-dev)  # scripts/fuzz.sh (libFuzzer harnesses, tests/fuzz), scripts/build-clang.sh
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
