@@ -2,6 +2,8 @@
 // never used: cells are clipped from the neighbour lists in double precision).
 #include "regular_triangulation.hpp"
 
+#include "power_predicate.hpp"
+
 #include <CGAL/Convex_hull_traits_adapter_2.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Regular_triangulation_2.h>
@@ -25,10 +27,41 @@ namespace sdot::detail {
 namespace {
 
 using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+
+/// The kernel's power test behind the semi-static filter of power_predicate.hpp; the kernel's own
+/// (interval, then exact) only where the filter cannot tell.
+struct FilteredPowerTest {
+  using WeightedPoint = Kernel::Weighted_point_2;
+  using result_type = CGAL::Oriented_side;
+  CGAL::Oriented_side operator()(const WeightedPoint& p, const WeightedPoint& q, const WeightedPoint& r,
+                                 const WeightedPoint& t) const {
+    const auto& a = p.point();
+    const auto& b = q.point();
+    const auto& c = r.point();
+    const auto& d = t.point();
+    if (const auto sign = power_test_sign_by_filter(a.x(), a.y(), p.weight(), b.x(), b.y(), q.weight(), c.x(), c.y(),
+                                                    r.weight(), d.x(), d.y(), t.weight()))
+      return *sign > 0 ? CGAL::ON_POSITIVE_SIDE : CGAL::ON_NEGATIVE_SIDE;
+    return exact(p, q, r, t);
+  }
+  // The tests of fewer points (collinear and coincident configurations) are rare.
+  CGAL::Oriented_side operator()(const WeightedPoint& p, const WeightedPoint& q, const WeightedPoint& t) const {
+    return exact(p, q, t);
+  }
+  CGAL::Oriented_side operator()(const WeightedPoint& p, const WeightedPoint& t) const { return exact(p, t); }
+  Kernel::Power_side_of_oriented_power_circle_2 exact;
+};
+
+/// The kernel, with FilteredPowerTest as its power test.
+struct Traits : Kernel {
+  using Power_side_of_oriented_power_circle_2 = FilteredPowerTest;
+  [[nodiscard]] FilteredPowerTest power_side_of_oriented_power_circle_2_object() const { return {}; }
+};
+
 using VertexBase =
-    CGAL::Triangulation_vertex_base_with_info_2<int, Kernel, CGAL::Regular_triangulation_vertex_base_2<Kernel>>;
-using FaceBase = CGAL::Regular_triangulation_face_base_2<Kernel>;
-using Triangulation = CGAL::Regular_triangulation_2<Kernel, CGAL::Triangulation_data_structure_2<VertexBase, FaceBase>>;
+    CGAL::Triangulation_vertex_base_with_info_2<int, Traits, CGAL::Regular_triangulation_vertex_base_2<Traits>>;
+using FaceBase = CGAL::Regular_triangulation_face_base_2<Traits>;
+using Triangulation = CGAL::Regular_triangulation_2<Traits, CGAL::Triangulation_data_structure_2<VertexBase, FaceBase>>;
 
 inline std::size_t at(int i) {
   return static_cast<std::size_t>(i);

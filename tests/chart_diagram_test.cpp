@@ -3,11 +3,17 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <limits>
+#include <optional>
 #include <random>
 #include <string>
+#include <tuple>
 
+#include "power_predicate.hpp"
 #include "sdot/chart_diagram.hpp"
 #include "sdot/error.hpp"
 
@@ -209,6 +215,131 @@ TEST(PowerDiagram, ExactlyDegenerateInputs) {
       EXPECT_TRUE(
           build_power_diagram(hidden, std::vector<double>{0.2, -0.2, 0.2}, square, {}, false, method)[1].empty());
   }
+}
+
+__extension__ using Int128 = __int128;  // GCC and Clang; no -Wpedantic warning
+
+/// Four weighted points on a grid: coordinates k·2⁻ᵇ and weights m·2⁻²ᵇ, k and m integers (exact doubles
+/// for |k|, |m| < 2⁵³).
+struct GridQuadruple {
+  std::array<std::array<std::int64_t, 3>, 4> points;  // x, y, weight of p, q, r, t
+  int bits;
+  [[nodiscard]] double value(int k, int d) const {
+    return std::ldexp(static_cast<double>(points[static_cast<std::size_t>(k)][static_cast<std::size_t>(d)]),
+                      d == 2 ? -2 * bits : -bits);
+  }
+  [[nodiscard]] std::optional<int> filtered() const {
+    return detail::power_test_sign_by_filter(value(0, 0), value(0, 1), value(0, 2), value(1, 0), value(1, 1),
+                                             value(1, 2), value(2, 0), value(2, 1), value(2, 2), value(3, 0),
+                                             value(3, 1), value(3, 2));
+  }
+  /// The power test's determinant in units of 2⁻⁴ᵇ, exactly (every entry is an integer in units of
+  /// 2⁻ᵇ or 2⁻²ᵇ; with coordinates below 2²⁷ units it fits in 128 bits).
+  [[nodiscard]] Int128 determinant() const {
+    const auto& t = points[3];
+    Int128 rows[3][3];
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::int64_t dx = points[k][0] - t[0], dy = points[k][1] - t[1];
+      rows[k][0] = dx, rows[k][1] = dy;
+      rows[k][2] = static_cast<Int128>(dx) * dx + static_cast<Int128>(dy) * dy - (points[k][2] - t[2]);
+    }
+    return rows[0][2] * (rows[1][0] * rows[2][1] - rows[2][0] * rows[1][1]) +
+           rows[1][2] * (rows[2][0] * rows[0][1] - rows[0][0] * rows[2][1]) +
+           rows[2][2] * (rows[0][0] * rows[1][1] - rows[1][0] * rows[0][1]);
+  }
+};
+
+/// Checks the filter against the exact sign; counts abstentions and exact zeros.
+void expect_filter_exact(const GridQuadruple& quadruple, int& answered, int& degenerate, int& abstained) {
+  const Int128 determinant = quadruple.determinant();
+  const int exact = determinant > 0 ? 1 : (determinant < 0 ? -1 : 0);
+  const auto filtered = quadruple.filtered();
+  if (exact == 0) ++degenerate;
+  if (!filtered) {
+    ++abstained;
+    return;
+  }
+  ++answered;
+  ASSERT_EQ(*filtered, exact) << quadruple.value(3, 0) << ", " << quadruple.value(3, 1);
+}
+
+TEST(PowerPredicate, FilterGivesTheExactSignOrAbstains) {
+  // Small integer ranges make exactly degenerate quadruples (cocircular, collinear, equal points,
+  // equal powers) frequent; there the filter must abstain.
+  std::mt19937_64 random(11);
+  int answered = 0, degenerate = 0, abstained = 0;
+  for (const std::int64_t range : {std::int64_t{3}, std::int64_t{40}}) {
+    std::uniform_int_distribution<std::int64_t> coordinate(-range, range), weight(-range * range, range * range);
+    for (int trial = 0; trial < 100000; ++trial) {
+      GridQuadruple quadruple{{}, 20};
+      for (auto& p : quadruple.points) p = {coordinate(random), coordinate(random), weight(random)};
+      expect_filter_exact(quadruple, answered, degenerate, abstained);
+    }
+  }
+  EXPECT_GT(degenerate, 1000);
+  EXPECT_EQ(abstained, degenerate);  // on these small integers double precision is exact
+  // Nearly degenerate: four points near a circle on a grid of 2⁻²⁶, then t's weight set so that
+  // the determinant is within half of |orient(p, q, r)| of 0, below the determinant's rounding
+  // error in double precision: a filter without its error bound gets signs wrong here.
+  std::uniform_real_distribution<double> uniform(0, 1);
+  const int bits = 26;
+  const double unit = std::ldexp(1.0, bits);
+  int wrong_in_double = 0;
+  answered = degenerate = abstained = 0;
+  for (int trial = 0; trial < 100000; ++trial) {
+    const double cx = 0.6 * uniform(random) - 0.3, cy = 0.6 * uniform(random) - 0.3,
+                 radius = 0.1 + 0.5 * uniform(random);
+    GridQuadruple quadruple{{}, bits};
+    for (auto& p : quadruple.points) {
+      const double angle = 2 * M_PI * uniform(random);
+      p = {std::llround((cx + radius * std::cos(angle)) * unit), std::llround((cy + radius * std::sin(angle)) * unit),
+           0};
+    }
+    auto& t = quadruple.points[3];
+    const auto& [p, q, r] = std::tie(quadruple.points[0], quadruple.points[1], quadruple.points[2]);
+    // det is affine in t's weight m with slope orient(p, q, r) (the sum of the three minors).
+    const Int128 orientation =
+        static_cast<Int128>(q[0] - p[0]) * (r[1] - p[1]) - static_cast<Int128>(q[1] - p[1]) * (r[0] - p[0]);
+    if (orientation == 0) continue;
+    const Int128 at_zero = quadruple.determinant();
+    t[2] = static_cast<std::int64_t>(-at_zero / orientation) + static_cast<std::int64_t>(trial % 3) - 1;
+    const Int128 determinant = quadruple.determinant();
+    // What a plain double-precision determinant says (the filter's own arithmetic, no bound).
+    const double dx[3] = {quadruple.value(0, 0) - quadruple.value(3, 0), quadruple.value(1, 0) - quadruple.value(3, 0),
+                          quadruple.value(2, 0) - quadruple.value(3, 0)};
+    const double dy[3] = {quadruple.value(0, 1) - quadruple.value(3, 1), quadruple.value(1, 1) - quadruple.value(3, 1),
+                          quadruple.value(2, 1) - quadruple.value(3, 1)};
+    double dz[3];
+    for (int k = 0; k < 3; ++k) dz[k] = dx[k] * dx[k] + dy[k] * dy[k] - (quadruple.value(k, 2) - quadruple.value(3, 2));
+    const double plain = dz[0] * (dx[1] * dy[2] - dx[2] * dy[1]) + dz[1] * (dx[2] * dy[0] - dx[0] * dy[2]) +
+                         dz[2] * (dx[0] * dy[1] - dx[1] * dy[0]);
+    if ((plain > 0) != (determinant > 0) || (plain < 0) != (determinant < 0)) ++wrong_in_double;
+    expect_filter_exact(quadruple, answered, degenerate, abstained);
+  }
+  EXPECT_GT(wrong_in_double, 1000);  // the cases are hard enough to matter
+  EXPECT_GT(abstained, 1000);
+  // Away from degeneracy the filter answers: random points on the same grid.
+  answered = degenerate = abstained = 0;
+  std::uniform_int_distribution<std::int64_t> coordinate(-(std::int64_t{1} << bits), std::int64_t{1} << bits),
+      weight(-(std::int64_t{1} << 2 * bits), std::int64_t{1} << 2 * bits);
+  for (int trial = 0; trial < 100000; ++trial) {
+    GridQuadruple quadruple{{}, bits};
+    for (auto& p : quadruple.points) p = {coordinate(random), coordinate(random), weight(random)};
+    expect_filter_exact(quadruple, answered, degenerate, abstained);
+  }
+  EXPECT_LT(abstained, 100);
+}
+
+TEST(PowerPredicate, FilterAbstainsOutsideItsRange) {
+  const double nan = std::numeric_limits<double>::quiet_NaN(), huge = 1e200, tiny = 1e-200;
+  EXPECT_FALSE(detail::power_test_sign_by_filter(0, 0, 0, 1, 0, 0, 0, 1, 0, nan, 0.3, 0).has_value());
+  EXPECT_FALSE(detail::power_test_sign_by_filter(0, 0, 0, huge, 0, 0, 0, huge, 0, 0.3, 0.3, 0).has_value());
+  EXPECT_FALSE(
+      detail::power_test_sign_by_filter(0, 0, 0, tiny, 0, 0, 0, tiny, 0, 0.3 * tiny, 0.3 * tiny, 0).has_value());
+  // Counter-clockwise p, q, r: inside their circle is the positive side.
+  EXPECT_EQ(detail::power_test_sign_by_filter(0, 0, 0, 1, 0, 0, 0, 1, 0, 0.3, 0.3, 0), 1);
+  EXPECT_EQ(detail::power_test_sign_by_filter(0, 0, 0, 1, 0, 0, 0, 1, 0, 2, 2, 0), -1);
+  EXPECT_EQ(detail::power_test_sign_by_filter(0, 0, 0, 1, 0, 0, 0, 1, 0, 2, 2, 10), 1);  // a heavy t: positive
 }
 
 TEST(PowerDiagram, SameCellsToTheLastBitAtEveryRun) {
