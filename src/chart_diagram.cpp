@@ -507,7 +507,7 @@ void clip_cell(ChartCell& cell, std::size_t i, std::span<const int> neighbors, s
 
 std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> centers,
                                                       std::span<const double> power_weight, const ConvexPolygon& domain,
-                                                      bool stop_at_empty_cell) {
+                                                      bool stop_at_empty_cell, std::size_t own_cells) {
   const std::size_t n = centers.size();
   const auto triangulation = detail::regular_triangulation(centers, power_weight, stop_at_empty_cell);
   std::vector<ChartCell> cells(n);  // after the triangulation, whose memory is freed by then
@@ -525,7 +525,7 @@ std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> cent
     if (stop_at_empty_cell && found_empty.load(std::memory_order_relaxed)) continue;
     const auto i = static_cast<std::size_t>(order[position]);
     clip_cell(cells[i], i, triangulation.neighbors.of(i), centers, power_weight, domain.vertices());
-    if (cells[i].vertices.empty()) found_empty.store(true, std::memory_order_relaxed);
+    if (cells[i].vertices.empty() && i < own_cells) found_empty.store(true, std::memory_order_relaxed);
   }
   return cells;
 }
@@ -535,12 +535,12 @@ std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> cent
 
 std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weight,
                                            const ConvexPolygon& domain, std::span<const Vec2> anchors,
-                                           bool stop_at_empty_cell, PowerDiagramMethod method) {
+                                           bool stop_at_empty_cell, PowerDiagramMethod method, std::size_t own_cells) {
   if (method == PowerDiagramMethod::regular_triangulation && !has_regular_triangulation())
     throw InputError("method", "this build of sdot has no regular triangulation (configure with SDOT_WITH_CGAL=ON)");
 #ifdef SDOT_HAVE_CGAL
   if (method != PowerDiagramMethod::kd_tree)
-    return power_diagram_by_triangulation(centers, power_weight, domain, stop_at_empty_cell);
+    return power_diagram_by_triangulation(centers, power_weight, domain, stop_at_empty_cell, own_cells);
 #endif
   // Each cell starts as the domain clipped by the sites of the nearest centres; then, while some
   // site j is strictly below the envelope at a vertex v of the cell (pow_j(v) < pow_i(v)), the
@@ -609,7 +609,7 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
         }
         if (!progress) break;
       }
-      if (cell.vertices.empty()) found_empty.store(true, std::memory_order_relaxed);
+      if (cell.vertices.empty() && i < own_cells) found_empty.store(true, std::memory_order_relaxed);
       for (auto& u : cell.vertices) u += center;
     }
   }

@@ -10,6 +10,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <limits>
 #include <optional>
 #include <span>
 #include <string>
@@ -106,10 +107,14 @@ std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const Con
 /// The power diagram of centres c_i with power weights w_i (cell i = {v : |v − c_i|² − w_i ≤
 /// |v − c_j|² − w_j ∀j}) over `domain`; the same cells as `build_chart_diagram` with
 /// a_i = (c_i, (w_i − |c_i|²)/2), computed without cancellation when the caller has w directly.
+/// With `stop_at_empty_cell`, only an empty cell among the first `own_cells` stops the build (or
+/// a site hidden in the whole plane): the others may be images of those, such as a torus's ghosts,
+/// which the domain can cut to nothing while their originals' cells are not empty.
 std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weights,
                                            const ConvexPolygon& domain, std::span<const Vec2> anchors = {},
                                            bool stop_at_empty_cell = false,
-                                           PowerDiagramMethod method = PowerDiagramMethod::automatic);
+                                           PowerDiagramMethod method = PowerDiagramMethod::automatic,
+                                           std::size_t own_cells = std::numeric_limits<std::size_t>::max());
 
 /// Same, with the neighbour candidates already known (e.g. from a 3-D hull).
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,

@@ -245,7 +245,13 @@ Diagram<Torus::Point> Torus::build_diagram(std::span<const Point> sites, const E
 }
 
 Diagram<Torus::Point> Torus::build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights,
-                                           GhostStatistics& statistics) const {
+                                           bool stop_at_empty_cell) const {
+  GhostStatistics statistics;
+  return build_diagram(sites, weights, statistics, stop_at_empty_cell);
+}
+
+Diagram<Torus::Point> Torus::build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights,
+                                           GhostStatistics& statistics, bool stop_at_empty_cell) const {
   statistics = {};
   Diagram<Point> diagram;
   const std::size_t n = sites.size();
@@ -280,12 +286,16 @@ Diagram<Torus::Point> Torus::build_diagram(std::span<const Point> sites, const E
     centers.resize(n);
     power_weights.resize(n);
     owner.clear();
-    for (std::size_t i = 0; i < n; ++i) {
-      const Vec2 c = centers[i];
-      if (!((periodic_[0] && (c.x() - low.x() <= margin.x() || high.x() - c.x() <= margin.x())) ||
-            (periodic_[1] && (c.y() - low.y() <= margin.y() || high.y() - c.y() <= margin.y()))))
-        continue;
-      for (std::size_t s = 1; s < shifts.size(); ++s) {
+    // Shift by shift, so that the ghosts follow their sites' order (a space-filling curve when the
+    // solver calls): the triangulation then inserts them with short walks. Site by site, every
+    // corner site's images alternated between far sides of the box (torus 10⁵: 4× the plane's
+    // point-location time).
+    for (std::size_t s = 1; s < shifts.size(); ++s)
+      for (std::size_t i = 0; i < n; ++i) {
+        const Vec2 c = centers[i];
+        if (!((periodic_[0] && (c.x() - low.x() <= margin.x() || high.x() - c.x() <= margin.x())) ||
+              (periodic_[1] && (c.y() - low.y() <= margin.y() || high.y() - c.y() <= margin.y()))))
+          continue;
         const Vec2 image = c + shifts[s];
         bool inside = true;
         for (int d = 0; d < 2; ++d)
@@ -297,10 +307,18 @@ Diagram<Torus::Point> Torus::build_diagram(std::span<const Point> sites, const E
         power_weights.push_back(power_weight);
         owner.push_back(static_cast<int>(i));
       }
-    }
     std::vector<ChartCell> cells = build_power_diagram(
-        centers, power_weights, ConvexPolygon::rectangle(grown_low.x(), grown_low.y(), grown_high.x(), grown_high.y()));
+        centers, power_weights, ConvexPolygon::rectangle(grown_low.x(), grown_low.y(), grown_high.x(), grown_high.y()),
+        {}, stop_at_empty_cell, PowerDiagramMethod::automatic, n);
     ++statistics.builds;
+    // An empty cell is empty in the exact diagram too: a ghost only adds competitors, and a site
+    // hidden among a subset of the images is hidden among all of them. The line search that asked
+    // rejects the step whatever the other cells are.
+    if (stop_at_empty_cell && std::any_of(cells.begin(), cells.begin() + count,
+                                          [](const ChartCell& cell) { return cell.vertices.empty(); })) {
+      diagram.cells.resize(n);
+      return diagram;
+    }
 
     // Is every site's cell exact? Not when it reaches a side of the grown box across a periodic
     // axis (the box cuts it there), nor when an image left out is below it at a vertex v: every

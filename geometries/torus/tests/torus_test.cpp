@@ -2,6 +2,7 @@
 // a 3 × 3 tiling of the plane, wrapping, tiny N, one periodic axis, densities, bad input).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <random>
@@ -384,6 +385,68 @@ TEST(Torus, WideningMarginsKeepTheCellsExact) {
     const auto again = torus.build_diagram(std::span<const Point>(sites), weights, statistics);
     EXPECT_EQ(statistics.builds, 1);
   }
+}
+
+// The line search's early stop: a diagram built with stop_at_empty_cell has an empty cell exactly
+// when the full one does, and is the full one when it has none (the ghosts' cells, which the grown
+// box may cut to nothing, do not stop it).
+TEST(Torus, StopAtEmptyCellOnlyForEmptySites) {
+  const std::size_t n = 3000;
+  const auto sites = random_points(n, 31);
+  std::mt19937_64 random(32);
+  std::uniform_real_distribution<double> uniform(-1, 1);
+  int with_empty = 0, without_empty = 0;
+  for (const double spread : {0.0, 1e-8, 1e-6, 1e-4, 1e-2}) {
+    Eigen::VectorXd weights(static_cast<Eigen::Index>(n));
+    for (auto& w : weights) w = spread * uniform(random);
+    const Torus torus;
+    const auto full = torus.build_diagram(std::span<const Point>(sites), weights);
+    const auto stopped = torus.build_diagram(std::span<const Point>(sites), weights, true);
+    ASSERT_EQ(stopped.cells.size(), n);
+    auto empty = [](const Cell<Point>& cell) { return cell.empty(); };
+    const bool full_has_empty = std::any_of(full.cells.begin(), full.cells.end(), empty);
+    EXPECT_EQ(std::any_of(stopped.cells.begin(), stopped.cells.end(), empty), full_has_empty) << spread;
+    (full_has_empty ? with_empty : without_empty)++;
+    if (!full_has_empty) {
+      for (std::size_t i = 0; i < n; ++i)
+        ASSERT_EQ(stopped.cells[i].vertices, full.cells[i].vertices) << "spread " << spread << ", cell " << i;
+    }
+  }
+  EXPECT_GT(with_empty, 0);  // both cases were exercised
+  EXPECT_GT(without_empty, 0);
+  // A ghost cut to nothing: on a k × k grid (spacing h, the first margin 4h) column 3 sits 3.95h
+  // from the right side, so its image at −3.95h is a ghost; weights shift its cell 0.6h to the
+  // left, which puts the image's cell beyond the grown box's side at −4h. No cell is empty. (At
+  // k ≥ 142 the triangulation is built in two halves, and that ghost's cell comes before the
+  // right half's cells: a stop at it would leave those empty.)
+  const int k = 150;
+  const double h = 1.0 / k;
+  std::vector<Point> grid;
+  for (int row = 0; row < k; ++row)
+    for (int column = 0; column < k; ++column) grid.emplace_back(1 - (column * h + 0.95 * h), (row + 0.5) * h);
+  // Bisector shifts s_j between columns j and j + 1 (summing to 0 around the period); the power
+  // weights 2ψ then fall by 2h·s_j from column j to j + 1.
+  std::vector<double> shift(k, 0.0);
+  const double ramp[] = {0.2, 0.4, 0.6, 0.6, 0.4, 0.2};
+  for (int j = 0; j < 6; ++j) shift[static_cast<std::size_t>(j)] = ramp[j] * h;
+  for (int j = 10; j < 34; ++j) shift[static_cast<std::size_t>(j)] = -0.1 * h;  // Σ shifts = 0
+  std::vector<double> column_weight(k, 0.0);
+  for (int j = 0; j + 1 < k; ++j)
+    column_weight[static_cast<std::size_t>(j + 1)] =
+        column_weight[static_cast<std::size_t>(j)] - h * shift[static_cast<std::size_t>(j)];  // ψ = power weight / 2
+  Eigen::VectorXd grid_weights(k * k);
+  for (int i = 0; i < k * k; ++i) grid_weights[i] = column_weight[static_cast<std::size_t>(i % k)];
+  const Torus torus;
+  const auto full = torus.build_diagram(std::span<const Point>(grid), grid_weights);
+  const auto stopped = torus.build_diagram(std::span<const Point>(grid), grid_weights, true);
+  for (std::size_t i = 0; i < grid.size(); ++i) {
+    ASSERT_FALSE(full.cells[i].empty()) << i;
+    ASSERT_EQ(stopped.cells[i].vertices, full.cells[i].vertices) << i;
+  }
+  // Column 3's cell is shifted as designed: its right side at 1 − (3.45h + 0.6h).
+  double right = -INFINITY;
+  for (const auto& v : full.cells[3].vertices) right = std::max(right, v.x());
+  EXPECT_NEAR(right, 1 - 4.05 * h, 1e-12);
 }
 
 TEST(Torus, FunctionDensityGivenOnTheBox) {

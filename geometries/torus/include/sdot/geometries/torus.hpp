@@ -92,9 +92,13 @@ class Torus {
   /// image left out could cut it (else the margin grows and the diagram is rebuilt, up to the
   /// whole 3 × 3 tiling, which is exact). The margin that worked is the start of the next call.
   [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights) const;
+  /// With `stop_at_empty_cell`, the builder may stop at the first empty cell (see the solver's
+  /// line search) and leave the other cells empty.
+  [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights,
+                                             bool stop_at_empty_cell) const;
   /// The same, reporting the ghosts and margins in `statistics`.
   [[nodiscard]] Diagram<Point> build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights,
-                                             GhostStatistics& statistics) const;
+                                             GhostStatistics& statistics, bool stop_at_empty_cell = false) const;
 
   /// Exact area, first moment (on the covering plane) and ∫ d(x, y)²/2 of a cell, y the site.
   [[nodiscard]] CellIntegrals<Point> integrate(const Cell<Point>& cell, const Point& site, bool with_cost = true) const;
