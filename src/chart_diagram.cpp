@@ -13,9 +13,7 @@
 
 #include "sdot/error.hpp"
 
-#ifdef SDOT_HAVE_CGAL
-#include "regular_triangulation.hpp"
-#endif
+#include "regular_triangulation.hpp"  // declarations only: the definitions need CGAL
 
 extern "C" {
 #include <libqhull_r/qhull_ra.h>
@@ -507,9 +505,32 @@ void clip_cell(ChartCell& cell, std::size_t i, std::span<const int> neighbors, s
 
 std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> centers,
                                                       std::span<const double> power_weight, const ConvexPolygon& domain,
-                                                      bool stop_at_empty_cell, std::size_t own_cells) {
+                                                      bool stop_at_empty_cell, std::size_t own_cells,
+                                                      PowerDiagramWarmStart* warm_start) {
   const std::size_t n = centers.size();
-  const auto triangulation = detail::regular_triangulation(centers, power_weight, stop_at_empty_cell);
+  // From the last triangulation when it has the same centres (taken, not copied: a concurrent
+  // build finds none and starts from scratch), else from scratch, and where flips cannot finish.
+  std::optional<detail::RegularTriangulation> flipped;
+  std::uint64_t fingerprint = 0;
+  detail::SiteTriangulation surface;
+  if (warm_start) {
+    fingerprint = detail::centers_fingerprint(centers);
+    {
+      const std::lock_guard lock(warm_start->mutex);
+      if (warm_start->count == n && warm_start->fingerprint == fingerprint) surface = std::move(warm_start->surface);
+    }
+    // More flips than sites: a start that far off is not worth finishing.
+    if (!surface.triangles.empty()) flipped = detail::regular_triangulation_by_flips(centers, power_weight, surface, n);
+  }
+  auto triangulation =
+      flipped ? std::move(*flipped) : detail::regular_triangulation(centers, power_weight, stop_at_empty_cell);
+  if (warm_start && !flipped && !triangulation.triangles.empty())
+    surface = detail::SiteTriangulation{std::move(triangulation.triangles), {}};
+  if (warm_start && !surface.triangles.empty()) {
+    const std::lock_guard lock(warm_start->mutex);
+    warm_start->count = n, warm_start->fingerprint = fingerprint;
+    warm_start->surface = std::move(surface);
+  }
   std::vector<ChartCell> cells(n);  // after the triangulation, whose memory is freed by then
   // A hidden site has an empty cell: a line search rejects the step without the other cells.
   if (triangulation.stopped_at_hidden ||
@@ -533,14 +554,21 @@ std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> cent
 }  // namespace
 #endif
 
+std::shared_ptr<PowerDiagramWarmStart> make_power_diagram_warm_start() {
+  return std::make_shared<PowerDiagramWarmStart>();
+}
+
 std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weight,
                                            const ConvexPolygon& domain, std::span<const Vec2> anchors,
-                                           bool stop_at_empty_cell, PowerDiagramMethod method, std::size_t own_cells) {
+                                           bool stop_at_empty_cell, PowerDiagramMethod method, std::size_t own_cells,
+                                           PowerDiagramWarmStart* warm_start) {
   if (method == PowerDiagramMethod::regular_triangulation && !has_regular_triangulation())
     throw InputError("method", "this build of sdot has no regular triangulation (configure with SDOT_WITH_CGAL=ON)");
 #ifdef SDOT_HAVE_CGAL
   if (method != PowerDiagramMethod::kd_tree)
-    return power_diagram_by_triangulation(centers, power_weight, domain, stop_at_empty_cell, own_cells);
+    return power_diagram_by_triangulation(centers, power_weight, domain, stop_at_empty_cell, own_cells, warm_start);
+#else
+  (void)warm_start;  // only triangulations are kept
 #endif
   // Each cell starts as the domain clipped by the sites of the nearest centres; then, while some
   // site j is strictly below the envelope at a vertex v of the cell (pow_j(v) < pow_i(v)), the

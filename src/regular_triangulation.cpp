@@ -19,6 +19,7 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 #include <utility>
@@ -413,6 +414,9 @@ RegularTriangulation whole_triangulation(std::span<const Vec2> centers, std::spa
     result.is_vertex[at(v->info())] = 1;
     result.order.push_back(v->info());
   }
+  if (result.order.size() == n)
+    for (auto f = triangulation.finite_faces_begin(); f != triangulation.finite_faces_end(); ++f)
+      result.triangles.push_back({f->vertex(0)->info(), f->vertex(1)->info(), f->vertex(2)->info()});
   Adjacency& adjacency = result.neighbors;
   adjacency.offsets.assign(n + 1, 0);
   const auto everyone = [](int) { return true; };
@@ -457,6 +461,14 @@ bool split_triangulation(std::span<const Vec2> centers, std::span<const double> 
         result.is_vertex[at(v->info())] = 1;
         result.order.push_back(v->info());
       }
+  // Each triangle from the half that owns its smallest vertex: the half's triangles at its own
+  // sites are the ones certified.
+  if (result.order.size() == n)
+    for (int h = 0; h < 2; ++h)
+      for (auto f = halves[at(h)].finite_faces_begin(); f != halves[at(h)].finite_faces_end(); ++f) {
+        const std::array<int, 3> t{f->vertex(0)->info(), f->vertex(1)->info(), f->vertex(2)->info()};
+        if (split.half[at(std::min({t[0], t[1], t[2]}))] == h) result.triangles.push_back(t);
+      }
   Adjacency& adjacency = result.neighbors;
   adjacency.offsets.assign(n + 1, 0);
   for (int h = 0; h < 2; ++h)
@@ -471,7 +483,166 @@ bool split_triangulation(std::span<const Vec2> centers, std::span<const double> 
   return true;
 }
 
+/// Each triangle rotated to start at its smallest vertex, then all in the order of those vertices
+/// and of their second: the same list whatever the order CGAL stored its faces in (memory
+/// addresses), so that the flips from it, and the cells, are the same at every run. Linear: a
+/// counting sort by the first vertex, then each vertex's few triangles by their second.
+void canonical_order(std::vector<std::array<int, 3>>& triangles, std::size_t count) {
+  std::vector<int> start(count + 1, 0);
+  for (auto& t : triangles) {
+    std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
+    ++start[at(t[0]) + 1];
+  }
+  for (std::size_t i = 0; i < count; ++i) start[i + 1] += start[i];
+  std::vector<std::array<int, 3>> sorted(triangles.size());
+  std::vector<int> fill(start.begin(), start.end() - 1);
+  for (const auto& t : triangles) sorted[at(fill[at(t[0])]++)] = t;
+  for (std::size_t i = 0; i < count; ++i) std::sort(sorted.begin() + start[i], sorted.begin() + start[i + 1]);
+  triangles = std::move(sorted);
+}
+
 }  // namespace
+
+std::uint64_t centers_fingerprint(std::span<const Vec2> centers) {
+  std::uint64_t hash = 0xcbf29ce484222325u ^ centers.size();
+  for (const Vec2& c : centers)
+    for (int d = 0; d < 2; ++d) {
+      std::uint64_t bits;
+      std::memcpy(&bits, &c[d], sizeof bits);
+      hash = (hash ^ bits) * 0x100000001b3u;
+      hash ^= hash >> 29;
+    }
+  return hash;
+}
+
+void find_twins(SiteTriangulation& surface, std::size_t count) {
+  const auto& triangles = surface.triangles;
+  const std::size_t m = triangles.size();
+  std::vector<int> first(count + 1, 0), outgoing(3 * m);
+  for (const auto& t : triangles)
+    for (int v : t) ++first[at(v) + 1];
+  for (std::size_t i = 0; i < count; ++i) first[i + 1] += first[i];
+  std::vector<int> fill(first.begin(), first.end() - 1);
+  for (std::size_t k = 0; k < m; ++k)
+    for (int e = 0; e < 3; ++e) outgoing[at(fill[at(triangles[k][at((e + 1) % 3)])]++)] = static_cast<int>(3 * k) + e;
+  surface.twins.assign(3 * m, -1);
+  const auto triangle_count = static_cast<std::ptrdiff_t>(m);
+#pragma omp parallel for schedule(static, 4096)
+  for (std::ptrdiff_t k = 0; k < triangle_count; ++k)
+    for (int e = 0; e < 3; ++e) {
+      const auto& t = triangles[at(static_cast<int>(k))];
+      const int a = t[at((e + 1) % 3)], b = t[at((e + 2) % 3)];
+      for (int i = first[at(b)]; i < first[at(b) + 1]; ++i) {
+        const int h = outgoing[at(i)];
+        if (triangles[at(h / 3)][at((h % 3 + 2) % 3)] == a) {
+          surface.twins[at(static_cast<int>(3 * k) + e)] = h;
+          break;
+        }
+      }
+    }
+}
+
+std::optional<RegularTriangulation> regular_triangulation_by_flips(std::span<const Vec2> centers,
+                                                                   std::span<const double> power_weights,
+                                                                   SiteTriangulation& surface, std::size_t max_flips) {
+  const std::size_t n = centers.size(), m = surface.triangles.size();
+  auto& triangles = surface.triangles;
+  for (const auto& t : triangles)
+    for (int v : t)
+      if (v < 0 || at(v) >= n) return std::nullopt;
+  if (surface.twins.size() != 3 * m) find_twins(surface, n);
+  auto& twin = surface.twins;
+  auto point = [&](int v) { return Kernel::Point_2(centers[at(v)].x(), centers[at(v)].y()); };
+  auto weighted = [&](int v) { return Kernel::Weighted_point_2(point(v), power_weights[at(v)]); };
+  const auto orientation = Kernel().orientation_2_object();
+  const FilteredPowerTest power_test;
+  // Half-edge h = 3k + e runs from vertex e + 1 to e + 2 of triangle k: it is not regular when the
+  // far vertex of its twin's triangle is in conflict with triangle k.
+  auto in_conflict = [&](int h) {
+    const int t = twin[at(h)];
+    if (t < 0) return false;
+    const auto& first = triangles[at(h / 3)];
+    const int e = h % 3;
+    return power_test(weighted(first[at((e + 1) % 3)]), weighted(first[at((e + 2) % 3)]), weighted(first[at(e)]),
+                      weighted(triangles[at(t / 3)][at(t % 3)])) == CGAL::ON_POSITIVE_SIDE;
+  };
+  // Every edge once, in parallel; in blocks joined in order, so that the list (and the flips, in
+  // degenerate cases) does not depend on the number of threads.
+  constexpr std::ptrdiff_t block_size = 8192;
+  const auto half_edges = static_cast<std::ptrdiff_t>(3 * m);
+  std::vector<std::vector<int>> block_conflicts(static_cast<std::size_t>((half_edges + block_size - 1) / block_size));
+#pragma omp parallel for schedule(static, 1)
+  for (std::ptrdiff_t block = 0; block < static_cast<std::ptrdiff_t>(block_conflicts.size()); ++block)
+    for (std::ptrdiff_t h = block * block_size; h < std::min(half_edges, (block + 1) * block_size); ++h)
+      if (twin[at(static_cast<int>(h))] > h && in_conflict(static_cast<int>(h)))
+        block_conflicts[at(static_cast<int>(block))].push_back(static_cast<int>(h));
+  std::vector<int> stack, stuck;
+  for (auto it = block_conflicts.rbegin(); it != block_conflicts.rend(); ++it)
+    stack.insert(stack.end(), it->rbegin(), it->rend());
+  std::size_t flips = 0;
+  while (!stack.empty()) {
+    const int h = stack.back();
+    stack.pop_back();
+    if (!in_conflict(h)) continue;
+    const int t = twin[at(h)];
+    const int k = h / 3, e = h % 3, k2 = t / 3, e2 = t % 3;
+    auto& first = triangles[at(k)];
+    auto& second = triangles[at(k2)];
+    const int c = first[at(e)], a = first[at((e + 1) % 3)], b = first[at((e + 2) % 3)], d = second[at(e2)];
+    // The new diagonal c–d: triangles (c, a, d) and (d, b, c), both counter-clockwise, or no flip
+    // (yet: a flip next to it changes the quadrilateral and tests this edge again).
+    if (orientation(point(c), point(a), point(d)) != CGAL::LEFT_TURN ||
+        orientation(point(d), point(b), point(c)) != CGAL::LEFT_TURN) {
+      stuck.push_back(h);
+      continue;
+    }
+    if (++flips > max_flips) return std::nullopt;
+    // The outer edges: b→c and c→a of the first triangle, a→d and d→b of the second.
+    const int bc = twin[at(3 * k + (e + 1) % 3)], ca = twin[at(3 * k + (e + 2) % 3)];
+    const int ad = twin[at(3 * k2 + (e2 + 1) % 3)], db = twin[at(3 * k2 + (e2 + 2) % 3)];
+    first = {c, a, d};   // opposite c: a→d; opposite a: d→c; opposite d: c→a
+    second = {d, b, c};  // opposite d: b→c; opposite b: c→d; opposite c: d→b
+    auto link = [&](int half_edge, int other) {
+      twin[at(half_edge)] = other;
+      if (other >= 0) twin[at(other)] = half_edge;
+    };
+    link(3 * k + 0, ad), link(3 * k + 2, ca), link(3 * k2 + 0, bc), link(3 * k2 + 2, db);
+    link(3 * k + 1, 3 * k2 + 1);
+    for (int outer : {3 * k + 0, 3 * k + 2, 3 * k2 + 0, 3 * k2 + 2}) stack.push_back(outer);
+  }
+  // Every edge was tested after its last change: only those left stuck can still be in conflict.
+  for (int h : stuck)
+    if (in_conflict(h)) return std::nullopt;
+  RegularTriangulation result;
+  result.is_vertex.assign(n, 0);
+  Adjacency& adjacency = result.neighbors;
+  adjacency.offsets.assign(n + 1, 0);
+  // a's neighbours: the ends of its outgoing half-edges, and the starts of the hull edges into it.
+  for (std::size_t h = 0; h < 3 * m; ++h) {
+    const auto& t = triangles[h / 3];
+    ++adjacency.offsets[at(t[(h + 1) % 3]) + 1];
+    if (twin[h] < 0) ++adjacency.offsets[at(t[(h + 2) % 3]) + 1];
+  }
+  for (std::size_t i = 0; i < n; ++i) adjacency.offsets[i + 1] += adjacency.offsets[i];
+  adjacency.neighbors.resize(at(adjacency.offsets[n]));
+  std::vector<int> fill(adjacency.offsets.begin(), adjacency.offsets.end() - 1);
+  for (std::size_t h = 0; h < 3 * m; ++h) {
+    const auto& t = triangles[h / 3];
+    const int a = t[(h + 1) % 3], b = t[(h + 2) % 3];
+    adjacency.neighbors[at(fill[at(a)]++)] = b;
+    if (twin[h] < 0) adjacency.neighbors[at(fill[at(b)]++)] = a;
+    result.is_vertex[at(a)] = 1;
+  }
+  if (std::find(result.is_vertex.begin(), result.is_vertex.end(), 0) != result.is_vertex.end()) return std::nullopt;
+  const auto count = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(static, 4096)
+  for (std::ptrdiff_t i = 0; i < count; ++i)
+    std::sort(adjacency.neighbors.begin() + adjacency.offsets[at(static_cast<int>(i))],
+              adjacency.neighbors.begin() + adjacency.offsets[at(static_cast<int>(i)) + 1]);
+  result.order.resize(n);
+  std::iota(result.order.begin(), result.order.end(), 0);
+  return result;
+}
 
 RegularTriangulation regular_triangulation(std::span<const Vec2> centers, std::span<const double> power_weights,
                                            bool stop_at_hidden) {
@@ -487,6 +658,7 @@ RegularTriangulation regular_triangulation(std::span<const Vec2> centers, std::s
   }
   if (!done) result = whole_triangulation(centers, power_weights, stop_at_hidden);
   if (result.stopped_at_hidden) return result;
+  canonical_order(result.triangles, n);
   // CGAL stores the faces in an order that depends on memory addresses (its internal sets are
   // keyed by handles), so the edges come in a different order from run to run. Sorted lists make
   // the clipping order, and so the cells to the last bit, the same at every run.

@@ -14,6 +14,7 @@
 #include <tuple>
 
 #include "power_predicate.hpp"
+#include "regular_triangulation.hpp"
 #include "sdot/chart_diagram.hpp"
 #include "sdot/error.hpp"
 
@@ -340,6 +341,85 @@ TEST(PowerPredicate, FilterAbstainsOutsideItsRange) {
   EXPECT_EQ(detail::power_test_sign_by_filter(0, 0, 0, 1, 0, 0, 0, 1, 0, 0.3, 0.3, 0), 1);
   EXPECT_EQ(detail::power_test_sign_by_filter(0, 0, 0, 1, 0, 0, 0, 1, 0, 2, 2, 0), -1);
   EXPECT_EQ(detail::power_test_sign_by_filter(0, 0, 0, 1, 0, 0, 0, 1, 0, 2, 2, 10), 1);  // a heavy t: positive
+}
+
+// A warm start (the last regular triangulation, then edge flips) gives the cells of a build from
+// scratch, bit for bit on generic input: through a Newton-like sequence of weights, a step that
+// hides a site (the flips cannot finish: from scratch), and steps far from the last.
+TEST(PowerDiagram, WarmStartGivesTheCellsOfABuildFromScratch) {
+  if (!has_regular_triangulation()) GTEST_SKIP() << "no regular triangulation in this build";
+  std::mt19937_64 random(17);
+  std::uniform_real_distribution<double> uniform(0, 1);
+  const std::size_t n = 30000;  // above the size the triangulation is split in two halves from
+  std::vector<Vec2> centers(n);
+  for (auto& c : centers) c = Vec2(uniform(random), uniform(random));
+  const auto square = ConvexPolygon::rectangle(0, 0, 1, 1);
+  const double spacing2 = 1.0 / static_cast<double>(n);
+  std::vector<std::vector<double>> steps;
+  steps.emplace_back(n, 0.0);
+  for (const double scale : {0.3, 0.3, 0.01, 1e-4, 1.0}) {  // relative to the mean spacing²
+    std::vector<double> next = steps.back();
+    for (auto& w : next) w += scale * spacing2 * (uniform(random) - 0.5);
+    steps.push_back(std::move(next));
+  }
+  steps.push_back(steps.back());
+  steps.back()[n / 2] -= 10 * spacing2;  // hidden by its neighbours
+  steps.push_back(steps[3]);
+  const auto warm_start = make_power_diagram_warm_start();
+  int flipped = 0;
+  for (std::size_t step = 0; step < steps.size(); ++step) {
+    const auto cold = build_power_diagram(centers, steps[step], square);
+    const auto warm = build_power_diagram(centers, steps[step], square, {}, false, PowerDiagramMethod::automatic, n,
+                                          warm_start.get());
+    std::size_t empty = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      ASSERT_EQ(warm[i].vertices, cold[i].vertices) << "step " << step << ", cell " << i;
+      ASSERT_EQ(warm[i].neighbors, cold[i].neighbors) << "step " << step << ", cell " << i;
+      empty += cold[i].empty();
+    }
+    if (step == 6) {
+      EXPECT_GT(empty, 0u);
+    }
+    // The half-edge twins exist only once flips have run from the kept triangulation.
+    flipped += !warm_start->surface.twins.empty();
+  }
+  EXPECT_GE(flipped, 4);
+  // The kept triangulation applies to its own centres only.
+  centers[7].x() += 1e-9;
+  const auto moved =
+      build_power_diagram(centers, steps[0], square, {}, false, PowerDiagramMethod::automatic, n, warm_start.get());
+  const auto moved_cold = build_power_diagram(centers, steps[0], square);
+  for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(moved[i].vertices, moved_cold[i].vertices) << i;
+}
+
+TEST(PowerDiagram, WarmStartOnExactlyDegenerateInput) {
+  if (!has_regular_triangulation()) GTEST_SKIP() << "no regular triangulation in this build";
+  // A grid (four cocircular sites at every cell corner) from a triangulation at perturbed
+  // weights: the flips stop at one of the equally regular triangulations; the cells are the same.
+  const int k = 40;
+  std::vector<Vec2> centers;
+  for (int i = 0; i < k; ++i)
+    for (int j = 0; j < k; ++j) centers.emplace_back((i + 0.5) / k, (j + 0.5) / k);
+  std::mt19937_64 random(5);
+  std::uniform_real_distribution<double> uniform(-1, 1);
+  std::vector<double> perturbed(centers.size());
+  for (auto& w : perturbed) w = 0.05 * uniform(random) / (k * k);
+  std::vector<double> equal(centers.size(), 0.0);
+  const auto square = ConvexPolygon::rectangle(0, 0, 1, 1);
+  const auto warm_start = make_power_diagram_warm_start();
+  for (const std::vector<double>* weights : {&perturbed, &equal, &perturbed, &equal}) {
+    const auto warm = build_power_diagram(centers, *weights, square, {}, false, PowerDiagramMethod::automatic,
+                                          centers.size(), warm_start.get());
+    const auto cold = build_power_diagram(centers, *weights, square);
+    for (std::size_t i = 0; i < centers.size(); ++i) {
+      EXPECT_NEAR(area(warm[i]), area(cold[i]), 1e-15) << i;
+      EXPECT_EQ(long_edge_neighbors(warm[i]), long_edge_neighbors(cold[i])) << i;
+      if (weights == &equal) {
+        EXPECT_NEAR(area(warm[i]), 1.0 / (k * k), 1e-15) << i;
+      }
+    }
+  }
+  EXPECT_FALSE(warm_start->surface.twins.empty());
 }
 
 TEST(PowerDiagram, SameCellsToTheLastBitAtEveryRun) {

@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -78,6 +79,11 @@ struct Adjacency {
   }
 };
 
+/// The last regular triangulation of `build_power_diagram` calls (opaque; thread-safe).
+struct PowerDiagramWarmStart;
+/// An empty warm start, for a geometry to hold (and share between its copies).
+std::shared_ptr<PowerDiagramWarmStart> make_power_diagram_warm_start();
+
 /// How `build_power_diagram` and `build_chart_diagram` find the cells.
 enum class PowerDiagramMethod {
   /// `regular_triangulation` when this build has it (`has_regular_triangulation()`), else `kd_tree`.
@@ -110,11 +116,16 @@ std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const Con
 /// With `stop_at_empty_cell`, only an empty cell among the first `own_cells` stops the build (or
 /// a site hidden in the whole plane): the others may be images of those, such as a torus's ghosts,
 /// which the domain can cut to nothing while their originals' cells are not empty.
+/// `warm_start` (optional, from make_power_diagram_warm_start) keeps the regular triangulation
+/// for the next build: when that has the same centres, it starts from it by edge flips (a Newton
+/// step changes the weights only), and from scratch where the flips cannot finish. The cells are
+/// the same either way.
 std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weights,
                                            const ConvexPolygon& domain, std::span<const Vec2> anchors = {},
                                            bool stop_at_empty_cell = false,
                                            PowerDiagramMethod method = PowerDiagramMethod::automatic,
-                                           std::size_t own_cells = std::numeric_limits<std::size_t>::max());
+                                           std::size_t own_cells = std::numeric_limits<std::size_t>::max(),
+                                           PowerDiagramWarmStart* warm_start = nullptr);
 
 /// Same, with the neighbour candidates already known (e.g. from a 3-D hull).
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,

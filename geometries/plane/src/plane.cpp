@@ -88,8 +88,8 @@ Diagram<Plane::Point> Plane::build_diagram(std::span<const Point> sites, const E
   std::vector<Vec2> shifted = domain_.vertices();
   for (auto& v : shifted) v -= origin;
   Diagram<Point> diagram;
-  diagram.cells =
-      build_power_diagram(centers, power_weights, ConvexPolygon(std::move(shifted)), {}, stop_at_empty_cell);
+  diagram.cells = build_power_diagram(centers, power_weights, ConvexPolygon(std::move(shifted)), {}, stop_at_empty_cell,
+                                      PowerDiagramMethod::automatic, centers.size(), warm_start_.get());
   for (auto& cell : diagram.cells)
     for (auto& v : cell.vertices) v += origin;
   return diagram;

@@ -309,7 +309,7 @@ Diagram<Torus::Point> Torus::build_diagram(std::span<const Point> sites, const E
       }
     std::vector<ChartCell> cells = build_power_diagram(
         centers, power_weights, ConvexPolygon::rectangle(grown_low.x(), grown_low.y(), grown_high.x(), grown_high.y()),
-        {}, stop_at_empty_cell, PowerDiagramMethod::automatic, n);
+        {}, stop_at_empty_cell, PowerDiagramMethod::automatic, n, warm_start_.get());
     ++statistics.builds;
     // An empty cell is empty in the exact diagram too: a ghost only adds competitors, and a site
     // hidden among a subset of the images is hidden among all of them. The line search that asked

@@ -110,6 +110,8 @@ class Plane {
   ConvexPolygon domain_;
   Point chart_origin_ = Point::Zero();
   double chart_scale_ = 1;
+  // The last diagram's regular triangulation, the start of the next (shared by copies).
+  std::shared_ptr<PowerDiagramWarmStart> warm_start_ = make_power_diagram_warm_start();
 };
 
 }  // namespace sdot

@@ -156,6 +156,9 @@ class Torus {
   /// The ghost margin in mean spacings: the start of the next build_diagram (atomic: concurrent
   /// solves on one Torus may update it).
   mutable std::atomic<double> margin_factor_;
+  /// The last diagram's regular triangulation (sites and ghosts), the start of the next build
+  /// with the same ghosts.
+  std::shared_ptr<PowerDiagramWarmStart> warm_start_ = make_power_diagram_warm_start();
 };
 
 template <class Visit>
