@@ -884,7 +884,8 @@ HullTriangulation tetrahedron_around_origin(std::span<const Vec3> points) {
 
 }  // namespace
 
-std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullTriangulation start) {
+std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullTriangulation start,
+                                             bool stop_at_inside) {
   const std::size_t n = points.size();
   if (start.triangles.empty()) start = tetrahedron_around_origin(points);
   if (start.triangles.empty() || start.opposite.size() != 3 * start.triangles.size()) return std::nullopt;
@@ -907,6 +908,16 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
   std::size_t operations = 0;
   std::vector<int> stack;
   stack.reserve(start.opposite.size());
+  bool stopped = false;  // at a point inside (with `stop_at_inside`)
+  // The surface as it is, still star-shaped and facing out everywhere: a start for the next call.
+  auto stopped_hull = [&]() {
+    surface.compact();
+    Hull3 hull;
+    hull.is_vertex = std::move(on_surface);
+    hull.stopped_at_inside = true;
+    hull.surface = std::move(start);
+    return hull;
+  };
   auto settle = [&]() {
     while (!stack.empty()) {
       const int h = stack.back();
@@ -927,6 +938,10 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
         if (surface.degree(corner, 4) != 3 || !surface.faces_out(x, y, z) || !surface.below(x, y, z, v)) continue;
         surface.remove_vertex(corner, stack);
         on_surface[static_cast<std::size_t>(v)] = 0;
+        if (stop_at_inside) {
+          stopped = true;
+          return true;
+        }
       }
       if (++operations > max_operations) return false;
     }
@@ -935,6 +950,7 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
   for (int h = 0; h < surface.half_edges(); ++h)
     if (h < surface.twin(h)) stack.push_back(h);
   if (!settle()) return std::nullopt;
+  if (stopped) return stopped_hull();
 
   // Points off the start (empty cells of the previous diagram): inserted where they lie above the
   // surface, which is then settled again.
@@ -956,6 +972,7 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
     surface.split(t, p, stack);
     on_surface[i] = 1;
     if (!settle()) return std::nullopt;
+    if (stopped) return stopped_hull();
   }
 
   for (int h = 0; h < surface.half_edges(); ++h)  // the final check: every live edge convex

@@ -585,6 +585,33 @@ TEST(HullByFlips, ReachesQhullsHullFromANearbyHull) {
   EXPECT_EQ(differing_edges(again->edges, reference.edges, n), 0u);
 }
 
+TEST(HullByFlips, StopsAtTheFirstPointInsideAndKeepsAStart) {
+  // A line search's trial: some point falls inside. With stop_at_inside the flips stop there,
+  // and the part-grown surface is a start from which the hull is still reached.
+  const std::size_t n = 2000;
+  const auto before = lifted_sphere_points(n, 2e-4, 1);
+  const sdot::Hull3 start = sdot::convex_hull_3d(before, true);
+  ASSERT_EQ(std::count(start.is_vertex.begin(), start.is_vertex.end(), 1), static_cast<long>(n));
+  auto after = before;
+  after[n / 3] *= 0.9;  // deep inside
+  const auto stopped = sdot::convex_hull_3d_by_flips(after, start.surface, true);
+  ASSERT_TRUE(stopped.has_value());
+  EXPECT_TRUE(stopped->stopped_at_inside);
+  EXPECT_FALSE(stopped->is_vertex[n / 3]);
+  ASSERT_FALSE(stopped->surface.triangles.empty());
+  const sdot::Hull3 reference = sdot::convex_hull_3d(after);
+  const auto resumed = sdot::convex_hull_3d_by_flips(after, stopped->surface);
+  ASSERT_TRUE(resumed.has_value());
+  EXPECT_FALSE(resumed->stopped_at_inside);
+  EXPECT_EQ(resumed->is_vertex, reference.is_vertex);
+  EXPECT_EQ(differing_edges(resumed->edges, reference.edges, n), 0u);
+  // Without a point inside, the flag changes nothing.
+  const auto plain = sdot::convex_hull_3d_by_flips(before, start.surface, true);
+  ASSERT_TRUE(plain.has_value());
+  EXPECT_FALSE(plain->stopped_at_inside);
+  EXPECT_EQ(differing_edges(plain->edges, start.edges, n), 0u);
+}
+
 TEST(HullByFlips, RemovesPointsThatFallInsideAndInsertsThoseThatComeOut) {
   // Heights far larger than the squared spacing (4π/n ≈ 6e-3), as in a damped Newton trial step:
   // many points are inside the hull, and which ones changes between the two hulls.

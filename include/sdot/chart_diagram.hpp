@@ -156,6 +156,10 @@ struct Hull3 {
   /// The hull's triangulation: always from convex_hull_3d_by_flips(); from convex_hull_3d() with
   /// `with_surface` when the origin is strictly inside, else empty.
   HullTriangulation surface;
+  /// convex_hull_3d_by_flips() with `stop_at_inside` stopped at the first point found inside the
+  /// hull: `is_vertex` has a 0 (not all of them), `surface` is the part-grown surface (a start
+  /// for the next call), the rest is unset.
+  bool stopped_at_inside = false;
 };
 /// The 3-D convex hull of `points` (Qhull, triangulated): vertex adjacency along hull edges,
 /// which points are hull vertices, and the largest facet offset (< 0 iff the origin is strictly
@@ -173,7 +177,9 @@ Hull3 convex_hull_3d(std::span<const Vec3> points, bool with_surface = false);
 /// Empty when that is not reached: a triangle of `start` faces the origin or names a point that
 /// does not exist, no tetrahedron holds the origin, a reflex edge stays stuck (rare from an old
 /// hull; the caller may then start from scratch), or a walk or the flips run too long. The caller
-/// then runs convex_hull_3d.
-std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullTriangulation start);
+/// then runs convex_hull_3d. With `stop_at_inside`, stops at the first point found inside (an
+/// empty Laguerre cell; see Hull3::stopped_at_inside).
+std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullTriangulation start,
+                                             bool stop_at_inside = false);
 
 }  // namespace sdot

@@ -554,8 +554,8 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
     // From the previous hull; where a reflex edge stays stuck there (blub and brain_48k, once per
     // solve), from scratch by insertion, which does not get stuck; Qhull last.
     const bool from_previous = !start.triangles.empty();
-    std::optional<Hull3> grown = convex_hull_3d_by_flips(q, std::move(start));
-    if (!grown && from_previous) grown = convex_hull_3d_by_flips(q, {});
+    std::optional<Hull3> grown = convex_hull_3d_by_flips(q, std::move(start), stop_at_empty_cell);
+    if (!grown && from_previous) grown = convex_hull_3d_by_flips(q, {}, stop_at_empty_cell);
     if (grown) {
       hull = std::move(*grown);
     } else {
@@ -569,6 +569,7 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
       const std::lock_guard lock(hull_cache_->mutex);
       hull_cache_->surface = std::move(hull.surface);
     }
+    if (hull.stopped_at_inside) return diagram;        // an empty cell: the caller rejects these weights
     if (!(hull.max_facet_offset < 0)) return diagram;  // hemisphere condition violated
     // A point inside the hull is an empty cell: a caller that rejects those needs no cells at all.
     if (stop_at_empty_cell && std::find(hull.is_vertex.begin(), hull.is_vertex.end(), 0) != hull.is_vertex.end())
