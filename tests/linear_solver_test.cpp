@@ -303,7 +303,15 @@ TEST(NewtonMatrix, AssemblyEqualsTheTripletSum) {
       EXPECT_LT(assembled.innerIndexPtr()[p], assembled.innerIndexPtr()[p + 1]);
   EXPECT_EQ(assembled.diagonal().size(), n);
   EXPECT_GT(assembled.diagonal().minCoeff(), 0);
-  // The same weights in the same order give the same matrix, bit for bit.
+  // The same weights in the same order give the same matrix, bit for bit, on any number of threads.
   const sdot::SparseMatrix again = sdot::detail::assemble_hessian(n, facet_weights);
   EXPECT_TRUE(std::equal(again.valuePtr(), again.valuePtr() + again.nonZeros(), assembled.valuePtr()));
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const sdot::SparseMatrix serial = sdot::detail::assemble_hessian(n, facet_weights);
+  omp_set_num_threads(threads);
+  ASSERT_EQ(serial.nonZeros(), assembled.nonZeros());
+  EXPECT_TRUE(std::equal(serial.valuePtr(), serial.valuePtr() + serial.nonZeros(), assembled.valuePtr()));
+  EXPECT_TRUE(
+      std::equal(serial.innerIndexPtr(), serial.innerIndexPtr() + serial.nonZeros(), assembled.innerIndexPtr()));
 }
