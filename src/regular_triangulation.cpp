@@ -501,20 +501,8 @@ void canonical_order(std::vector<std::array<int, 3>>& triangles, std::size_t cou
   triangles = std::move(sorted);
 }
 
-}  // namespace
-
-std::uint64_t centers_fingerprint(std::span<const Vec2> centers) {
-  std::uint64_t hash = 0xcbf29ce484222325u ^ centers.size();
-  for (const Vec2& c : centers)
-    for (int d = 0; d < 2; ++d) {
-      std::uint64_t bits;
-      std::memcpy(&bits, &c[d], sizeof bits);
-      hash = (hash ^ bits) * 0x100000001b3u;
-      hash ^= hash >> 29;
-    }
-  return hash;
-}
-
+/// The twin of every half-edge of `surface` (its vertices are below `count`): each vertex's
+/// outgoing half-edges are listed, and the twin of a→b is found among b's.
 void find_twins(SiteTriangulation& surface, std::size_t count) {
   const auto& triangles = surface.triangles;
   const std::size_t m = triangles.size();
@@ -540,6 +528,20 @@ void find_twins(SiteTriangulation& surface, std::size_t count) {
         }
       }
     }
+}
+
+}  // namespace
+
+std::uint64_t centers_fingerprint(std::span<const Vec2> centers) {
+  std::uint64_t hash = 0xcbf29ce484222325u ^ centers.size();
+  for (const Vec2& c : centers)
+    for (int d = 0; d < 2; ++d) {
+      std::uint64_t bits;
+      std::memcpy(&bits, &c[d], sizeof bits);
+      hash = (hash ^ bits) * 0x100000001b3u;
+      hash ^= hash >> 29;
+    }
+  return hash;
 }
 
 std::optional<RegularTriangulation> regular_triangulation_by_flips(std::span<const Vec2> centers,
