@@ -422,6 +422,46 @@ TEST(PowerDiagram, WarmStartOnExactlyDegenerateInput) {
   EXPECT_FALSE(warm_start->surface.twins.empty());
 }
 
+TEST(PowerDiagram, WarmStartOnUglyInput) {
+  if (!has_regular_triangulation()) GTEST_SKIP() << "no regular triangulation in this build";
+  // Sites on a coarse grid (many collinear and cocircular ones, some on the domain's boundary and
+  // some repeated), through sequences of weights with equal, zero and spread values: the warm
+  // start gives the cells of a build from scratch every time.
+  std::mt19937_64 random(23);
+  const auto square = ConvexPolygon::rectangle(0, 0, 1, 1);
+  int flipped = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    std::uniform_int_distribution<int> coordinate(0, 6 + trial % 5);
+    const double scale = 1.0 / (6 + trial % 5);
+    std::vector<Vec2> centers(20 + static_cast<std::size_t>(trial) * 7);
+    for (auto& c : centers) c = Vec2(coordinate(random) * scale, coordinate(random) * scale);
+    if (trial % 2 == 0) {  // distinct grid points only: every site can be a vertex, so flips run
+      std::sort(centers.begin(), centers.end(),
+                [](const Vec2& a, const Vec2& b) { return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y()); });
+      centers.erase(std::unique(centers.begin(), centers.end()), centers.end());
+      std::shuffle(centers.begin(), centers.end(), random);
+    }
+    const std::size_t n = centers.size();
+    const auto warm_start = make_power_diagram_warm_start();
+    std::uniform_real_distribution<double> uniform(-1, 1);
+    for (int step = 0; step < 6; ++step) {
+      std::vector<double> weights(n, 0.0);
+      const double spread = step % 3 == 0 ? 0.0 : (step % 3 == 1 ? 1e-4 : 1e-2) * scale * scale;
+      for (auto& w : weights) w = spread * uniform(random);
+      const auto warm =
+          build_power_diagram(centers, weights, square, {}, false, PowerDiagramMethod::automatic, n, warm_start.get());
+      const auto cold = build_power_diagram(centers, weights, square);
+      for (std::size_t i = 0; i < n; ++i) {
+        ASSERT_NEAR(area(warm[i]), area(cold[i]), 1e-15) << "trial " << trial << ", step " << step << ", cell " << i;
+        ASSERT_EQ(long_edge_neighbors(warm[i]), long_edge_neighbors(cold[i]))
+            << "trial " << trial << ", step " << step << ", cell " << i;
+      }
+      flipped += !warm_start->surface.twins.empty();
+    }
+  }
+  EXPECT_GT(flipped, 40);  // the flips ran on many of these
+}
+
 TEST(PowerDiagram, SameCellsToTheLastBitAtEveryRun) {
   // The triangulation's storage order follows memory addresses; the cells must not.
   std::mt19937_64 random(11);
