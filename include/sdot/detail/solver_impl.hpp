@@ -50,80 +50,43 @@ inline MassError mass_error(const Eigen::VectorXd& masses, const Eigen::VectorXd
 /// Built in compressed columns directly: each column gathers its off-diagonal entries, sorts
 /// them by row (a few per column) and sums a pair's repeats (two cells can share several
 /// facets); four times faster than setFromTriplets, whose generic path sorted and merged four
-/// triplets per facet (bunny_35k's sites: 7–11 ms against 1.6–3.2 ms per matrix). Every pass runs
-/// on two cores: the weights are scattered to their columns in two halves side by side, so each
-/// column still receives its entries in the order of `facet_weights`, and its diagonal is summed
-/// in that order: equal input gives an equal matrix, whatever the number of threads.
+/// triplets per facet (bunny_35k's sites: 7–11 ms against 1.6–3.2 ms per matrix). The diagonal is
+/// summed in the order of `facet_weights`, so equal input gives an equal matrix.
 /// With `arc_weights` (partial transport), they add to the diagonal; the matrix is then definite
 /// as soon as one arc weight is positive, and no site is pinned.
 inline SparseMatrix assemble_hessian(Eigen::Index n, const std::vector<Eigen::Triplet<double>>& facet_weights,
                                      const Eigen::VectorXd& arc_weights = {}) {
   const auto column_size = static_cast<std::size_t>(n);
-  const std::size_t weight_count = facet_weights.size(), half = (weight_count + 1) / 2;
-  auto at = [](int i) { return static_cast<std::size_t>(i); };
-  // Per half, its entries per column, then where it writes them: after the first half's.
-  std::array<std::vector<int>, 2> cursor;
-  std::array<double, 2> largest{0, 0};
-#pragma omp parallel for schedule(static, 1) num_threads(2)
-  for (int part = 0; part < 2; ++part) {
-    auto& count = cursor[at(part)];
-    count.assign(column_size, 0);
-    for (std::size_t t = at(part) * half; t < std::min(weight_count, (at(part) + 1) * half); ++t)
-      ++count[at(facet_weights[t].row())], ++count[at(facet_weights[t].col())];
-  }
   std::vector<int> start(column_size + 1, 0);
+  for (const auto& t : facet_weights)
+    ++start[static_cast<std::size_t>(t.row()) + 1], ++start[static_cast<std::size_t>(t.col()) + 1];
+  for (std::size_t c = 0; c < column_size; ++c) start[c + 1] += start[c];
+  std::vector<int> cursor(start.begin(), start.end() - 1);
+  std::vector<std::pair<int, double>> entries(static_cast<std::size_t>(start[column_size]));
+  Eigen::VectorXd diagonal = Eigen::VectorXd::Zero(n);
+  double largest = 0;
+  for (const auto& t : facet_weights) {
+    const int i = t.row(), j = t.col();
+    const double w = t.value();
+    entries[static_cast<std::size_t>(cursor[static_cast<std::size_t>(j)]++)] = {i, -w};
+    entries[static_cast<std::size_t>(cursor[static_cast<std::size_t>(i)]++)] = {j, -w};
+    diagonal[i] += w, diagonal[j] += w;
+    largest = std::max(largest, std::abs(w));
+  }
+  if (arc_weights.size() == n) diagonal += arc_weights;
+  if (!(arc_weights.size() == n && arc_weights.maxCoeff() > 0)) diagonal[0] += largest > 0 ? largest : 1.0;
+  SparseMatrix hessian(n, n);
+  hessian.resizeNonZeros(static_cast<Eigen::Index>(entries.size()) + n);  // at most; repeats merge below
+  int* outer = hessian.outerIndexPtr();
+  int* inner = hessian.innerIndexPtr();
+  double* values = hessian.valuePtr();
+  int written = 0;
   for (std::size_t c = 0; c < column_size; ++c) {
-    const int first = cursor[0][c], second = cursor[1][c];
-    cursor[0][c] = start[c], cursor[1][c] = start[c] + first;
-    start[c + 1] = start[c] + first + second;
-  }
-  std::vector<std::pair<int, double>> entries(at(start[column_size]));
-#pragma omp parallel for schedule(static, 1) num_threads(2)
-  for (int part = 0; part < 2; ++part) {
-    auto& next = cursor[at(part)];
-    for (std::size_t t = at(part) * half; t < std::min(weight_count, (at(part) + 1) * half); ++t) {
-      const int i = facet_weights[t].row(), j = facet_weights[t].col();
-      const double w = facet_weights[t].value();
-      entries[at(next[at(j)]++)] = {i, -w};
-      entries[at(next[at(i)]++)] = {j, -w};
-      largest[at(part)] = std::max(largest[at(part)], std::abs(w));
-    }
-  }
-  cursor = {};
-  const double largest_weight = std::max(largest[0], largest[1]);
-  const bool pinned = !(arc_weights.size() == n && arc_weights.maxCoeff() > 0);
-  // Per column: its diagonal (the weights summed in input order), its entries sorted by row, and
-  // how many distinct rows it has, the diagonal's included.
-  Eigen::VectorXd diagonal(n);
-  std::vector<int> outer(column_size + 1, 0);
-  const auto columns = static_cast<std::ptrdiff_t>(column_size);
-#pragma omp parallel for schedule(static, 4096)
-  for (std::ptrdiff_t column = 0; column < columns; ++column) {
-    const auto c = static_cast<std::size_t>(column);
-    const auto first = entries.begin() + start[c], last = entries.begin() + start[c + 1];
-    double sum = 0;
-    for (auto it = first; it != last; ++it) sum -= it->second;
-    if (arc_weights.size() == n) sum += arc_weights[column];
-    if (pinned && c == 0) sum += largest_weight > 0 ? largest_weight : 1.0;
-    diagonal[column] = sum;
+    outer[c] = written;
+    auto first = entries.begin() + start[c], last = entries.begin() + start[c + 1];
     // Insertion sort: stable (a pair's repeats are summed in input order) and fast on a few entries.
     for (auto it = first; it != last; ++it)
       for (auto back = it; back != first && (back - 1)->first > back->first; --back) std::iter_swap(back - 1, back);
-    int rows = 1;  // the diagonal
-    for (auto it = first; it != last; ++it)
-      if (it->first != static_cast<int>(c) && (it == first || (it - 1)->first != it->first)) ++rows;
-    outer[c + 1] = rows;
-  }
-  for (std::size_t c = 0; c < column_size; ++c) outer[c + 1] += outer[c];
-  SparseMatrix hessian(n, n);
-  hessian.resizeNonZeros(outer[column_size]);
-  std::copy(outer.begin(), outer.end(), hessian.outerIndexPtr());
-  int* inner = hessian.innerIndexPtr();
-  double* values = hessian.valuePtr();
-#pragma omp parallel for schedule(static, 4096)
-  for (std::ptrdiff_t column = 0; column < columns; ++column) {
-    const auto c = static_cast<std::size_t>(column);
-    int written = outer[c];
     bool diagonal_written = false;
     auto put = [&](int row, double value) {
       if (written > outer[c] && inner[written - 1] == row)
@@ -131,13 +94,15 @@ inline SparseMatrix assemble_hessian(Eigen::Index n, const std::vector<Eigen::Tr
       else
         inner[written] = row, values[written++] = value;
     };
-    for (auto it = entries.begin() + start[c]; it != entries.begin() + start[c + 1]; ++it) {
+    for (auto it = first; it != last; ++it) {
       if (!diagonal_written && it->first > static_cast<int>(c))
-        put(static_cast<int>(c), diagonal[column]), diagonal_written = true;
+        put(static_cast<int>(c), diagonal[static_cast<Eigen::Index>(c)]), diagonal_written = true;
       put(it->first, it->second);
     }
-    if (!diagonal_written) put(static_cast<int>(c), diagonal[column]);
+    if (!diagonal_written) put(static_cast<int>(c), diagonal[static_cast<Eigen::Index>(c)]);
   }
+  outer[column_size] = written;
+  hessian.resizeNonZeros(written);
   return hessian;
 }
 
@@ -250,15 +215,6 @@ Diagram<typename G::Point> build_diagram(const G& geometry, std::span<const type
     return geometry.build_diagram(sites, weights, stop_at_empty_cell);
   else
     return geometry.build_diagram(sites, weights);
-}
-
-/// Empties a diagram, freeing its cells on all cores (a million cells are two million blocks).
-template <class Point>
-void release(Diagram<Point>& diagram) {
-  const auto count = static_cast<std::ptrdiff_t>(diagram.cells.size());
-#pragma omp parallel for schedule(static, 4096)
-  for (std::ptrdiff_t i = 0; i < count; ++i) diagram.cells[static_cast<std::size_t>(i)] = {};
-  diagram = {};
 }
 
 inline bool usable_status(Status status) {
@@ -628,7 +584,7 @@ sdot::Result<typename G::Point> sdot::detail::solve_in_order(
         // From here on only the current masses are needed: the cells, integrals and facet weights
         // (about 300 bytes per site) are freed for the linear solve and the trial diagrams, and
         // rebuilt should no step be accepted.
-        detail::release(current.diagram);
+        current.diagram = {};
         current.integrals = {};
         current.facet_weights = {};
         current.arc_weights = {};
