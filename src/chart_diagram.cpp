@@ -523,7 +523,8 @@ std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> cent
     if (!surface.triangles.empty()) flipped = detail::regular_triangulation_by_flips(centers, power_weight, surface, n);
   }
   auto triangulation =
-      flipped ? std::move(*flipped) : detail::regular_triangulation(centers, power_weight, stop_at_empty_cell);
+      flipped ? std::move(*flipped)
+              : detail::regular_triangulation(centers, power_weight, stop_at_empty_cell, warm_start != nullptr);
   if (warm_start && !flipped && !triangulation.triangles.empty())
     surface = detail::SiteTriangulation{std::move(triangulation.triangles), {}};
   if (warm_start && !surface.triangles.empty()) {

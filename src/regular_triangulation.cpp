@@ -397,7 +397,7 @@ bool regular_at_half(const Triangulation& triangulation, std::span<const Vec2> c
 
 /// The serial triangulation of all sites.
 RegularTriangulation whole_triangulation(std::span<const Vec2> centers, std::span<const double> power_weights,
-                                         bool stop_at_hidden) {
+                                         bool stop_at_hidden, bool with_triangles) {
   const std::size_t n = centers.size();
   RegularTriangulation result;
   std::vector<int> members(n);
@@ -414,7 +414,7 @@ RegularTriangulation whole_triangulation(std::span<const Vec2> centers, std::spa
     result.is_vertex[at(v->info())] = 1;
     result.order.push_back(v->info());
   }
-  if (result.order.size() == n)
+  if (with_triangles && result.order.size() == n)
     for (auto f = triangulation.finite_faces_begin(); f != triangulation.finite_faces_end(); ++f)
       result.triangles.push_back({f->vertex(0)->info(), f->vertex(1)->info(), f->vertex(2)->info()});
   Adjacency& adjacency = result.neighbors;
@@ -431,7 +431,7 @@ RegularTriangulation whole_triangulation(std::span<const Vec2> centers, std::spa
 /// The two halves of `split` triangulated side by side (one thread each when there are two);
 /// false when a half's triangles could not be certified (the caller then triangulates the whole).
 bool split_triangulation(std::span<const Vec2> centers, std::span<const double> power_weights, bool stop_at_hidden,
-                         const Split& split, RegularTriangulation& result) {
+                         bool with_triangles, const Split& split, RegularTriangulation& result) {
   const std::size_t n = centers.size();
   std::array<Triangulation, 2> halves;
   std::array<char, 2> certified{};
@@ -463,7 +463,7 @@ bool split_triangulation(std::span<const Vec2> centers, std::span<const double> 
       }
   // Each triangle from the half that owns its smallest vertex: the half's triangles at its own
   // sites are the ones certified.
-  if (result.order.size() == n)
+  if (with_triangles && result.order.size() == n)
     for (int h = 0; h < 2; ++h)
       for (auto f = halves[at(h)].finite_faces_begin(); f != halves[at(h)].finite_faces_end(); ++f) {
         const std::array<int, 3> t{f->vertex(0)->info(), f->vertex(1)->info(), f->vertex(2)->info()};
@@ -481,6 +481,15 @@ bool split_triangulation(std::span<const Vec2> centers, std::span<const double> 
     add_edges(
         halves[at(h)], [&](int i) { return split.half[at(i)] == h; }, adjacency, &fill);
   return true;
+}
+
+/// Sorts every site's list, on all cores.
+void sort_lists(Adjacency& adjacency) {
+  const auto count = static_cast<std::ptrdiff_t>(adjacency.offsets.size()) - 1;
+#pragma omp parallel for schedule(static, 4096)
+  for (std::ptrdiff_t i = 0; i < count; ++i)
+    std::sort(adjacency.neighbors.begin() + adjacency.offsets[static_cast<std::size_t>(i)],
+              adjacency.neighbors.begin() + adjacency.offsets[static_cast<std::size_t>(i) + 1]);
 }
 
 /// Each triangle rotated to start at its smallest vertex, then all in the order of those vertices
@@ -636,18 +645,14 @@ std::optional<RegularTriangulation> regular_triangulation_by_flips(std::span<con
     result.is_vertex[at(a)] = 1;
   }
   if (std::find(result.is_vertex.begin(), result.is_vertex.end(), 0) != result.is_vertex.end()) return std::nullopt;
-  const auto count = static_cast<std::ptrdiff_t>(n);
-#pragma omp parallel for schedule(static, 4096)
-  for (std::ptrdiff_t i = 0; i < count; ++i)
-    std::sort(adjacency.neighbors.begin() + adjacency.offsets[at(static_cast<int>(i))],
-              adjacency.neighbors.begin() + adjacency.offsets[at(static_cast<int>(i)) + 1]);
+  sort_lists(adjacency);
   result.order.resize(n);
   std::iota(result.order.begin(), result.order.end(), 0);
   return result;
 }
 
 RegularTriangulation regular_triangulation(std::span<const Vec2> centers, std::span<const double> power_weights,
-                                           bool stop_at_hidden) {
+                                           bool stop_at_hidden, bool with_triangles) {
   const std::size_t n = centers.size();
   RegularTriangulation result;
   // Large sets are triangulated as two halves at once (both cores), certified exact; the split
@@ -655,20 +660,16 @@ RegularTriangulation regular_triangulation(std::span<const Vec2> centers, std::s
   Split split;
   bool done = false;
   if (n >= parallel_size && make_split(centers, power_weights, split)) {
-    done = split_triangulation(centers, power_weights, stop_at_hidden, split, result);
+    done = split_triangulation(centers, power_weights, stop_at_hidden, with_triangles, split, result);
     if (!done) result = RegularTriangulation{};
   }
-  if (!done) result = whole_triangulation(centers, power_weights, stop_at_hidden);
+  if (!done) result = whole_triangulation(centers, power_weights, stop_at_hidden, with_triangles);
   if (result.stopped_at_hidden) return result;
-  canonical_order(result.triangles, n);
+  if (with_triangles) canonical_order(result.triangles, n);
   // CGAL stores the faces in an order that depends on memory addresses (its internal sets are
   // keyed by handles), so the edges come in a different order from run to run. Sorted lists make
   // the clipping order, and so the cells to the last bit, the same at every run.
-  Adjacency& adjacency = result.neighbors;
-#pragma omp parallel for schedule(static, 4096)
-  for (std::size_t i = 0; i < n; ++i)
-    std::sort(adjacency.neighbors.begin() + adjacency.offsets[i],
-              adjacency.neighbors.begin() + adjacency.offsets[i + 1]);
+  sort_lists(result.neighbors);
   return result;
 }
 

@@ -22,13 +22,14 @@ struct RegularTriangulation {
   std::vector<char> is_vertex;
   std::vector<int> order;          ///< the vertices in storage order, close to their insertion order (a Hilbert curve)
   bool stopped_at_hidden = false;  ///< stopped early at a hidden site (only with `stop_at_hidden`): nothing else is set
-  /// The triangles, counter-clockwise, each from its smallest vertex, sorted: set when every site
-  /// is a vertex (the start of regular_triangulation_by_flips).
+  /// The triangles, counter-clockwise, each from its smallest vertex, sorted: set when asked for
+  /// and every site is a vertex (the start of regular_triangulation_by_flips).
   std::vector<std::array<int, 3>> triangles;
 };
-/// With `stop_at_hidden`, stops as soon as some site is hidden (its cell is empty).
+/// With `stop_at_hidden`, stops as soon as some site is hidden (its cell is empty). With
+/// `with_triangles`, also lists the triangles (for a warm start; not worth their time otherwise).
 RegularTriangulation regular_triangulation(std::span<const Vec2> centers, std::span<const double> power_weights,
-                                           bool stop_at_hidden = false);
+                                           bool stop_at_hidden = false, bool with_triangles = false);
 
 /// A triangulation of all the sites: its triangles, counter-clockwise, and the twin of each
 /// half-edge (half-edge 3k + e runs from vertex e + 1 to e + 2 of triangle k; its twin is the same
