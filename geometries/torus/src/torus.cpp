@@ -287,9 +287,8 @@ Diagram<Torus::Point> Torus::build_diagram(std::span<const Point> sites, const E
     power_weights.resize(n);
     owner.clear();
     // Shift by shift, so that the ghosts follow their sites' order (a space-filling curve when the
-    // solver calls): the triangulation then inserts them with short walks. Site by site, every
-    // corner site's images alternated between far sides of the box (torus 10⁵: 4× the plane's
-    // point-location time).
+    // solver calls) and consecutive ghosts lie close together: the triangulation inserts them
+    // with short walks. Site by site, a corner site's images alternate between far sides.
     for (std::size_t s = 1; s < shifts.size(); ++s)
       for (std::size_t i = 0; i < n; ++i) {
         const Vec2 c = centers[i];
