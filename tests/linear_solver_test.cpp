@@ -315,3 +315,37 @@ TEST(NewtonMatrix, AssemblyEqualsTheTripletSum) {
   EXPECT_TRUE(
       std::equal(serial.innerIndexPtr(), serial.innerIndexPtr() + serial.nonZeros(), assembled.innerIndexPtr()));
 }
+
+// Targets above 4× a cell's mass come down to 4×, the others scale up to keep the sum; nothing
+// moves when that would take more than a quarter of the error away, or near the solution.
+TEST(NewtonGrowth, LimitedToFourTimesTheMassWhileTheStepStillDescends) {
+  using sdot::detail::limit_newton_growth;
+  const Eigen::VectorXd masses = Eigen::VectorXd::Constant(400, 1.0);
+  Eigen::VectorXd rhs = Eigen::VectorXd::Constant(400, -0.1);
+  rhs[0] = 5.0;                  // a cell asked to grow 6×: to 4×
+  rhs.segment(1, 10).fill(2.9);  // within the limit
+  rhs[11] = -0.9;                // shrinking is not limited
+  rhs.array() -= rhs.mean();
+  const Eigen::VectorXd limited = limit_newton_growth(rhs, masses, false);
+  ASSERT_NE(limited, rhs);
+  EXPECT_NEAR(limited.sum(), 0, 1e-12);
+  const Eigen::VectorXd targets = masses + rhs, limited_targets = masses + limited;
+  const double scale = limited_targets[12] / targets[12];  // every target but the limited one
+  EXPECT_GT(scale, 1);
+  EXPECT_NEAR(limited_targets[0], 4.0 * scale, 1e-12);
+  EXPECT_NEAR(limited_targets[1], targets[1] * scale, 1e-12);
+  EXPECT_NEAR(limited_targets[11], targets[11] * scale, 1e-12);
+  EXPECT_NEAR(limited_targets.sum(), masses.sum(), 1e-9);
+  // Partial transport keeps its total moving: only the limited target changes.
+  const Eigen::VectorXd kept = limit_newton_growth(rhs, masses, true);
+  EXPECT_DOUBLE_EQ(kept[0], 3.0);
+  EXPECT_TRUE(kept.tail(399) == rhs.tail(399));
+  // One cell holding most of the error: limiting it would leave more than a quarter; unchanged.
+  Eigen::VectorXd dominant = Eigen::VectorXd::Constant(400, -0.02);
+  dominant[0] = 9.0;
+  dominant.array() -= dominant.mean();
+  EXPECT_EQ(limit_newton_growth(dominant, masses, false), dominant);
+  // Within the limit (growth to 4× included): unchanged.
+  const Eigen::VectorXd near = Eigen::VectorXd::LinSpaced(400, -0.99, 3.0);
+  EXPECT_EQ(limit_newton_growth(near, masses, true), near);
+}
