@@ -1,7 +1,8 @@
 // Smoothed-aggregation algebraic multigrid (Vaněk, Mandel, Brezina 1996) as the preconditioner of
 // conjugate gradients. Matrices are kept in compressed rows of their own (the input is symmetric,
-// so its compressed columns are its rows); the smoother is symmetric Gauss–Seidel, forward before
-// the coarse correction and backward after it, so that the V-cycle is a symmetric preconditioner.
+// so its compressed columns are its rows); the smoother is Gauss–Seidel, Settings::smoothing_sweeps
+// forward sweeps before the coarse correction and as many backward after it, so that the V-cycle
+// is a symmetric preconditioner.
 #include "sdot/multigrid.hpp"
 
 #include <omp.h>
@@ -316,6 +317,7 @@ struct MultigridSolver::Hierarchy {
   mutable Eigen::ComputationInfo solve_info = Eigen::Success;
   mutable int last_iterations = 0;
   mutable double last_error = 0, last_scaled_error = 0;
+  int smoothing_sweeps = 2;
 
   /// x ≈ A⁻¹ b on `levels[l]` (b in levels[l].rhs, result in levels[l].x)
   void cycle(std::size_t l) const {
@@ -326,6 +328,7 @@ struct MultigridSolver::Hierarchy {
     }
     level.x.setZero();
     gauss_seidel(level, true, true);
+    for (int sweep = 1; sweep < smoothing_sweeps; ++sweep) gauss_seidel(level, true, false);
     multiply(level.single, level.x, level.residual);
     level.residual = level.rhs - level.residual;
     multiply(level.restriction, level.residual, levels[l + 1].rhs);
@@ -338,7 +341,7 @@ struct MultigridSolver::Hierarchy {
       for (std::size_t k = p.row_begin(i); k < p.row_end(i); ++k) sum += double(p.value[k]) * coarse_x[p.column[k]];
       level.x[i] += sum;
     }
-    gauss_seidel(level, false, false);
+    for (int sweep = 0; sweep < smoothing_sweeps; ++sweep) gauss_seidel(level, false, false);
   }
 };
 
@@ -354,7 +357,7 @@ void MultigridSolver::compute(const SparseMatrix& matrix) {
   const bool previous_built = h.info == Eigen::Success && h.levels.size() > 1;
   h.info = Eigen::Success;
   h.solve_info = Eigen::Success;
-  if (matrix.rows() != matrix.cols() || !matrix.isCompressed()) {
+  if (matrix.rows() != matrix.cols() || !matrix.isCompressed() || settings_.smoothing_sweeps < 1) {
     h.levels.clear();
     h.info = Eigen::InvalidInput;
     return;
@@ -387,6 +390,7 @@ void MultigridSolver::compute(const SparseMatrix& matrix) {
 
 void MultigridSolver::Hierarchy::build(RowMatrix finest_matrix, const Settings& settings) {
   ++builds;
+  smoothing_sweeps = settings.smoothing_sweeps;
   levels.clear();
   info = Eigen::Success;
   reused = false;

@@ -162,6 +162,32 @@ TEST(Multigrid, ReportsBadMatricesAndTheIterationLimit) {
   EXPECT_EQ(multigrid.info(), Eigen::InvalidInput);
 }
 
+TEST(Multigrid, MoreSmoothingSweepsTakeFewerIterationsAndZeroIsRejected) {
+  const sdot::SparseMatrix matrix = weighted_laplacian(100, 9);
+  const Eigen::VectorXd rhs = zero_sum_rhs(matrix.rows(), 10);
+  int previous = std::numeric_limits<int>::max();
+  Eigen::VectorXd first;
+  for (int sweeps : {1, 2, 3}) {
+    sdot::MultigridSolver::Settings settings;
+    settings.smoothing_sweeps = sweeps;
+    sdot::MultigridSolver multigrid(settings);
+    multigrid.compute(matrix);
+    ASSERT_EQ(multigrid.info(), Eigen::Success);
+    multigrid.setTolerance(1e-10);
+    const Eigen::VectorXd x = multigrid.solve(rhs);
+    ASSERT_EQ(multigrid.info(), Eigen::Success);
+    EXPECT_LE((rhs - matrix * x).norm(), 1e-10 * rhs.norm());
+    std::printf("  %d sweeps: %d iterations\n", sweeps, multigrid.iterations());
+    EXPECT_LT(multigrid.iterations(), previous) << sweeps << " sweeps";
+    previous = multigrid.iterations();
+  }
+  sdot::MultigridSolver::Settings none;
+  none.smoothing_sweeps = 0;
+  sdot::MultigridSolver multigrid(none);
+  multigrid.compute(matrix);
+  EXPECT_EQ(multigrid.info(), Eigen::InvalidInput);
+}
+
 TEST(Multigrid, ReusesItsHierarchyForTheNextNewtonMatrix) {
   const sdot::SparseMatrix first = weighted_laplacian(120, 1);
   const Eigen::VectorXd rhs = zero_sum_rhs(first.rows(), 2);

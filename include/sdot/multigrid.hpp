@@ -41,6 +41,10 @@ class MultigridSolver {
     /// digits per iteration of the first solve after a build, and at once when a solve with them
     /// does not converge.
     bool reuse_hierarchy = true;
+    /// Symmetric Gauss–Seidel sweeps before and after each coarse correction (at least 1). Two
+    /// cost less in all than one: sphere, 10⁶ sites, 62 → 40 conjugate-gradient iterations in
+    /// the 6 Newton solves, 7.1–7.3 → 6.8–6.9 s of linear solves.
+    int smoothing_sweeps = 2;
   };
 
   /// A solver with the default Settings.
@@ -61,9 +65,9 @@ class MultigridSolver {
   /// Builds the hierarchy of `matrix`: symmetric, both triangles stored, positive diagonal.
   void compute(const SparseMatrix& matrix);
   /// `Eigen::Success` after a successful compute and solve; `InvalidInput` when the matrix is not
-  /// square or not compressed; `NumericalIssue` when the matrix has a non-positive diagonal entry
-  /// or a level cannot be factorised; `NoConvergence` when the last solve stopped at the iteration
-  /// limit above the tolerance.
+  /// square or not compressed, or `Settings::smoothing_sweeps` is below 1; `NumericalIssue` when the matrix has a
+  /// non-positive diagonal entry or a level cannot be factorised; `NoConvergence` when the last solve stopped at the
+  /// iteration limit above the tolerance.
   [[nodiscard]] Eigen::ComputationInfo info() const;
   /// Solves matrix·x = rhs from x = 0.
   [[nodiscard]] Eigen::VectorXd solve(const Eigen::VectorXd& rhs) const;
