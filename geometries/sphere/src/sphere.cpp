@@ -46,11 +46,20 @@ Eigen::Matrix3d frame_at(const Vec3& c) {
   return frame;
 }
 
+/// atan2(y, x), by its Taylor series where |y| ≤ x/20: the small angles of the cells' triangles
+/// and arcs (10⁵ sites and more) are most of the integration's calls, and the series is several
+/// times cheaper than the library's atan2. Its first omitted term is below 4e-20 of the angle.
+double small_angle_atan2(double y, double x) {
+  if (!(x > 0 && std::abs(y) <= 0.05 * x)) return std::atan2(y, x);
+  const double t = y / x, t2 = t * t;
+  return t * (1 + t2 * (-1.0 / 3 + t2 * (1.0 / 5 + t2 * (-1.0 / 7 + t2 * (1.0 / 9 + t2 * (-1.0 / 11 + t2 / 13))))));
+}
+
 /// Signed area of the spherical triangle abc (positive when counter-clockwise seen from outside),
 /// Van Oosterom–Strackee with det(a, b, c) = det(a, b − a, c − a) for accuracy on small triangles.
 double triangle_area(const Vec3& a, const Vec3& b, const Vec3& c) {
   const double det = a.dot((b - a).cross(c - a));
-  return 2 * std::atan2(det, 1 + a.dot(b) + b.dot(c) + c.dot(a));
+  return 2 * small_angle_atan2(det, 1 + a.dot(b) + b.dot(c) + c.dot(a));
 }
 
 /// Angle swept counter-clockwise (seen from outside) around `center` from a to b (in (−π, π]).
@@ -75,7 +84,11 @@ Vec3 rotate_about(const Vec3& a, const Vec3& center, double theta) {
 double log_cost(const Vec3& x, const Vec3& p) {
   const double c = x.dot(p);
   if (!(c > 0)) return INFINITY;
-  return 0.5 * std::log1p(x.cross(p).squaredNorm() / (c * c));
+  const double u = x.cross(p).squaredNorm() / (c * c);
+  if (u > 1e-3) return 0.5 * std::log1p(u);
+  // The series of log1p, several times cheaper near the site, where the cost quadrature's nodes
+  // lie; its first omitted term is below 2e-19 of the value.
+  return 0.5 * u * (1 + u * (-1.0 / 2 + u * (1.0 / 3 + u * (-1.0 / 4 + u * (1.0 / 5 - u / 6)))));
 }
 
 ChartCell chart_square(double half) {
@@ -952,7 +965,7 @@ CellIntegrals<Sphere::Point> Sphere::integrate(const Cell<Point>& cell, const Po
       // ½ L n_in with n_in = a × b / |a × b| for a counter-clockwise edge.
       const Vec3 normal = a.cross(b - a);
       const double s = normal.norm();
-      if (s > 0) moment += (0.5 * std::atan2(s, a.dot(b)) / s) * normal;
+      if (s > 0) moment += (0.5 * small_angle_atan2(s, a.dot(b)) / s) * normal;
     }
   }
   result.mass = area;
