@@ -293,53 +293,58 @@ TEST(LinearSolver, AutomaticUsesMultigridAndFallsBackWhenItFails) {
 // The Newton matrix is assembled in compressed columns directly; it must equal the sum of the
 // four triplets per facet weight (what setFromTriplets builds), for input in any order and with
 // a pair repeated (two cells sharing two facets), plus the gauge entry at (0, 0).
+// Below 2¹⁶ facets the assembly runs on one thread, from there on one column range per thread.
 TEST(NewtonMatrix, AssemblyEqualsTheTripletSum) {
-  const int n = 300;
-  std::mt19937 rng(11);
-  std::uniform_int_distribution<int> site(0, n - 1);
-  std::uniform_real_distribution<double> weight(0.1, 2.0);
-  std::vector<Eigen::Triplet<double>> facet_weights;
-  for (int k = 0; k < 1500; ++k) {
-    int i = site(rng), j = site(rng);
-    if (i == j) continue;
-    if (i > j) std::swap(i, j);
-    facet_weights.emplace_back(i, j, weight(rng));
-    if (k % 50 == 0) facet_weights.emplace_back(i, j, weight(rng));  // a repeated pair
-  }
-  std::shuffle(facet_weights.begin(), facet_weights.end(), rng);
-  std::vector<Eigen::Triplet<double>> entries;
-  double largest = 0;
-  for (const auto& t : facet_weights) {
-    entries.emplace_back(t.row(), t.col(), -t.value());
-    entries.emplace_back(t.col(), t.row(), -t.value());
-    entries.emplace_back(t.row(), t.row(), t.value());
-    entries.emplace_back(t.col(), t.col(), t.value());
-    largest = std::max(largest, t.value());
-  }
-  entries.emplace_back(0, 0, largest);
-  sdot::SparseMatrix expected(n, n);
-  expected.setFromTriplets(entries.begin(), entries.end());
+  for (const auto& [n, pairs] : {std::pair{300, 1500}, std::pair{40000, 100000}}) {
+    std::mt19937 rng(11);
+    std::uniform_int_distribution<int> site(0, n - 1);
+    std::uniform_real_distribution<double> weight(0.1, 2.0);
+    std::vector<Eigen::Triplet<double>> facet_weights;
+    for (int k = 0; k < pairs; ++k) {
+      int i = site(rng), j = site(rng);
+      if (i == j) continue;
+      if (i > j) std::swap(i, j);
+      facet_weights.emplace_back(i, j, weight(rng));
+      if (k % 50 == 0) facet_weights.emplace_back(i, j, weight(rng));  // a repeated pair
+    }
+    std::shuffle(facet_weights.begin(), facet_weights.end(), rng);
+    std::vector<Eigen::Triplet<double>> entries;
+    double largest = 0;
+    for (const auto& t : facet_weights) {
+      entries.emplace_back(t.row(), t.col(), -t.value());
+      entries.emplace_back(t.col(), t.row(), -t.value());
+      entries.emplace_back(t.row(), t.row(), t.value());
+      entries.emplace_back(t.col(), t.col(), t.value());
+      largest = std::max(largest, t.value());
+    }
+    entries.emplace_back(0, 0, largest);
+    for (int c = 0; c < n; ++c) entries.emplace_back(c, c, 0.0);  // every diagonal entry is stored
+    sdot::SparseMatrix expected(n, n);
+    expected.setFromTriplets(entries.begin(), entries.end());
 
-  const sdot::SparseMatrix assembled = sdot::detail::assemble_hessian(n, facet_weights);
-  EXPECT_TRUE(assembled.isCompressed());
-  EXPECT_EQ(assembled.nonZeros(), expected.nonZeros());
-  EXPECT_LT((assembled - expected).norm(), 1e-13 * expected.norm());
-  for (int c = 0; c < n; ++c)  // rows strictly increasing in each column, diagonal present
-    for (int p = assembled.outerIndexPtr()[c]; p + 1 < assembled.outerIndexPtr()[c + 1]; ++p)
-      EXPECT_LT(assembled.innerIndexPtr()[p], assembled.innerIndexPtr()[p + 1]);
-  EXPECT_EQ(assembled.diagonal().size(), n);
-  EXPECT_GT(assembled.diagonal().minCoeff(), 0);
-  // The same weights in the same order give the same matrix, bit for bit, on any number of threads.
-  const sdot::SparseMatrix again = sdot::detail::assemble_hessian(n, facet_weights);
-  EXPECT_TRUE(std::equal(again.valuePtr(), again.valuePtr() + again.nonZeros(), assembled.valuePtr()));
-  const int threads = omp_get_max_threads();
-  omp_set_num_threads(1);
-  const sdot::SparseMatrix serial = sdot::detail::assemble_hessian(n, facet_weights);
-  omp_set_num_threads(threads);
-  ASSERT_EQ(serial.nonZeros(), assembled.nonZeros());
-  EXPECT_TRUE(std::equal(serial.valuePtr(), serial.valuePtr() + serial.nonZeros(), assembled.valuePtr()));
-  EXPECT_TRUE(
-      std::equal(serial.innerIndexPtr(), serial.innerIndexPtr() + serial.nonZeros(), assembled.innerIndexPtr()));
+    const sdot::SparseMatrix assembled = sdot::detail::assemble_hessian(n, facet_weights);
+    EXPECT_TRUE(assembled.isCompressed());
+    EXPECT_EQ(assembled.nonZeros(), expected.nonZeros()) << n;
+    EXPECT_LT((assembled - expected).norm(), 1e-13 * expected.norm()) << n;
+    for (int c = 0; c < n; ++c)  // rows strictly increasing in each column, diagonal present
+      for (int p = assembled.outerIndexPtr()[c]; p + 1 < assembled.outerIndexPtr()[c + 1]; ++p)
+        ASSERT_LT(assembled.innerIndexPtr()[p], assembled.innerIndexPtr()[p + 1]) << n;
+    EXPECT_EQ(assembled.diagonal().size(), n);
+    EXPECT_GE(assembled.diagonal().minCoeff(), 0);
+    // The same weights in the same order give the same matrix, bit for bit, on any number of threads.
+    const int threads = omp_get_max_threads();
+    for (int count : {1, 2, 3}) {
+      omp_set_num_threads(count);
+      const sdot::SparseMatrix again = sdot::detail::assemble_hessian(n, facet_weights);
+      omp_set_num_threads(threads);
+      ASSERT_EQ(again.nonZeros(), assembled.nonZeros());
+      EXPECT_TRUE(std::equal(again.valuePtr(), again.valuePtr() + again.nonZeros(), assembled.valuePtr()))
+          << n << " sites, " << count << " threads";
+      EXPECT_TRUE(
+          std::equal(again.innerIndexPtr(), again.innerIndexPtr() + again.nonZeros(), assembled.innerIndexPtr()));
+      EXPECT_TRUE(std::equal(again.outerIndexPtr(), again.outerIndexPtr() + n + 1, assembled.outerIndexPtr()));
+    }
+  }
 }
 
 // Targets above 4× a cell's mass come down to 4×, the others scale up to keep the sum; nothing

@@ -2,12 +2,16 @@
 // Implementation of solver.hpp (templates).
 
 #include <Eigen/SparseCore>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 #include <algorithm>
 #include <array>
 #include <cstdint>
 #include <cstdio>
 #include <exception>
 #include <limits>
+#include <memory>
 #include <type_traits>
 #include <utility>
 #include <vector>
@@ -50,59 +54,94 @@ inline MassError mass_error(const Eigen::VectorXd& masses, const Eigen::VectorXd
 /// Built in compressed columns directly: each column gathers its off-diagonal entries, sorts
 /// them by row (a few per column) and sums a pair's repeats (two cells can share several
 /// facets); four times faster than setFromTriplets, whose generic path sorted and merged four
-/// triplets per facet (bunny_35k's sites: 7–11 ms against 1.6–3.2 ms per matrix). The diagonal is
-/// summed in the order of `facet_weights`, so equal input gives an equal matrix.
+/// triplets per facet (bunny_35k's sites: 7–11 ms against 1.6–3.2 ms per matrix).
+/// From 2¹⁶ facets the columns are split in one contiguous range per thread: each thread reads
+/// every facet weight in order and keeps those of its columns, so every column gathers its
+/// entries, and sums its diagonal, in the order of `facet_weights` whatever the thread count;
+/// equal input gives an equal matrix, bit for bit.
 /// With `arc_weights` (partial transport), they add to the diagonal; the matrix is then definite
 /// as soon as one arc weight is positive, and no site is pinned.
 inline SparseMatrix assemble_hessian(Eigen::Index n, const std::vector<Eigen::Triplet<double>>& facet_weights,
                                      const Eigen::VectorXd& arc_weights = {}) {
   const auto column_size = static_cast<std::size_t>(n);
   std::vector<int> start(column_size + 1, 0);
-  for (const auto& t : facet_weights)
-    ++start[static_cast<std::size_t>(t.row()) + 1], ++start[static_cast<std::size_t>(t.col()) + 1];
-  for (std::size_t c = 0; c < column_size; ++c) start[c + 1] += start[c];
-  std::vector<int> cursor(start.begin(), start.end() - 1);
-  std::vector<std::pair<int, double>> entries(static_cast<std::size_t>(start[column_size]));
-  Eigen::VectorXd diagonal = Eigen::VectorXd::Zero(n);
   double largest = 0;
   for (const auto& t : facet_weights) {
-    const int i = t.row(), j = t.col();
-    const double w = t.value();
-    entries[static_cast<std::size_t>(cursor[static_cast<std::size_t>(j)]++)] = {i, -w};
-    entries[static_cast<std::size_t>(cursor[static_cast<std::size_t>(i)]++)] = {j, -w};
-    diagonal[i] += w, diagonal[j] += w;
-    largest = std::max(largest, std::abs(w));
+    ++start[static_cast<std::size_t>(t.row()) + 1], ++start[static_cast<std::size_t>(t.col()) + 1];
+    largest = std::max(largest, std::abs(t.value()));
+  }
+  for (std::size_t c = 0; c < column_size; ++c) start[c + 1] += start[c];
+  struct Entry {
+    int row;
+    double value;
+  };
+  // Not value-initialised: every entry is written below (zeroing them cost a third of the time).
+  const std::unique_ptr<Entry[]> entries(new Entry[static_cast<std::size_t>(start[column_size])]);
+  Eigen::VectorXd diagonal = Eigen::VectorXd::Zero(n);
+  std::vector<int> merged(column_size);  // each column's entry count once repeats are summed, diagonal included
+  const bool parallel = facet_weights.size() >= (std::size_t{1} << 16);
+#pragma omp parallel if (parallel)
+  {
+#ifdef _OPENMP
+    const auto threads = static_cast<std::size_t>(omp_get_num_threads());
+    const auto thread = static_cast<std::size_t>(omp_get_thread_num());
+#else
+    const std::size_t threads = 1, thread = 0;
+#endif
+    const std::size_t first_column = column_size * thread / threads;
+    const std::size_t last_column = column_size * (thread + 1) / threads;
+    std::vector<int> cursor(start.begin() + static_cast<std::ptrdiff_t>(first_column),
+                            start.begin() + static_cast<std::ptrdiff_t>(last_column));
+    auto mine = [&](int c) {
+      return static_cast<std::size_t>(c) >= first_column && static_cast<std::size_t>(c) < last_column;
+    };
+    for (const auto& t : facet_weights) {
+      const int i = t.row(), j = t.col();
+      const double w = t.value();
+      if (mine(j)) {
+        entries[static_cast<std::size_t>(cursor[static_cast<std::size_t>(j) - first_column]++)] = Entry{i, -w};
+        diagonal[j] += w;
+      }
+      if (mine(i)) {
+        entries[static_cast<std::size_t>(cursor[static_cast<std::size_t>(i) - first_column]++)] = Entry{j, -w};
+        diagonal[i] += w;
+      }
+    }
+    // Sorted by row (insertion sort: stable, so a pair's repeats are summed in input order, and
+    // fast on a few entries), repeats summed in place.
+    for (std::size_t c = first_column; c < last_column; ++c) {
+      Entry* const first = entries.get() + start[c];
+      Entry* const last = entries.get() + start[c + 1];
+      for (Entry* it = first; it != last; ++it)
+        for (Entry* back = it; back != first && (back - 1)->row > back->row; --back) std::swap(back[-1], back[0]);
+      Entry* out = first;
+      for (Entry* it = first; it != last; ++it)
+        if (out != first && (out - 1)->row == it->row)
+          (out - 1)->value += it->value;
+        else
+          *out++ = *it;
+      merged[c] = static_cast<int>(out - first) + 1;
+    }
   }
   if (arc_weights.size() == n) diagonal += arc_weights;
   if (!(arc_weights.size() == n && arc_weights.maxCoeff() > 0)) diagonal[0] += largest > 0 ? largest : 1.0;
   SparseMatrix hessian(n, n);
-  hessian.resizeNonZeros(static_cast<Eigen::Index>(entries.size()) + n);  // at most; repeats merge below
   int* outer = hessian.outerIndexPtr();
+  outer[0] = 0;
+  for (std::size_t c = 0; c < column_size; ++c) outer[c + 1] = outer[c] + merged[c];
+  hessian.resizeNonZeros(outer[column_size]);
   int* inner = hessian.innerIndexPtr();
   double* values = hessian.valuePtr();
-  int written = 0;
-  for (std::size_t c = 0; c < column_size; ++c) {
-    outer[c] = written;
-    auto first = entries.begin() + start[c], last = entries.begin() + start[c + 1];
-    // Insertion sort: stable (a pair's repeats are summed in input order) and fast on a few entries.
-    for (auto it = first; it != last; ++it)
-      for (auto back = it; back != first && (back - 1)->first > back->first; --back) std::iter_swap(back - 1, back);
-    bool diagonal_written = false;
-    auto put = [&](int row, double value) {
-      if (written > outer[c] && inner[written - 1] == row)
-        values[written - 1] += value;
-      else
-        inner[written] = row, values[written++] = value;
-    };
-    for (auto it = first; it != last; ++it) {
-      if (!diagonal_written && it->first > static_cast<int>(c))
-        put(static_cast<int>(c), diagonal[static_cast<Eigen::Index>(c)]), diagonal_written = true;
-      put(it->first, it->second);
-    }
-    if (!diagonal_written) put(static_cast<int>(c), diagonal[static_cast<Eigen::Index>(c)]);
+#pragma omp parallel for schedule(static) if (parallel)
+  for (std::ptrdiff_t column = 0; column < static_cast<std::ptrdiff_t>(n); ++column) {
+    const auto c = static_cast<std::size_t>(column);
+    const Entry* it = entries.get() + start[c];
+    const Entry* const last = it + (merged[c] - 1);
+    int written = outer[c];
+    for (; it != last && it->row < column; ++it) inner[written] = it->row, values[written++] = it->value;
+    inner[written] = static_cast<int>(column), values[written++] = diagonal[column];
+    for (; it != last; ++it) inner[written] = it->row, values[written++] = it->value;
   }
-  outer[column_size] = written;
-  hessian.resizeNonZeros(written);
   return hessian;
 }
 
