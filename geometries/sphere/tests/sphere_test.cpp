@@ -626,6 +626,12 @@ TEST(SphereBadInput, DuplicateAfterNormalisation) {
   sites[8] = 3 * sites[2];
   EXPECT_EQ(input_error([&] { solve(Sphere(), UniformDensity{}, std::span(sites), equal_masses(10)); }),
             "sites[8]: duplicate of sites[2] (after normalisation)");
+  // Many sites (a fine grid, searched in its bin order): the lowest index with an earlier twin.
+  auto many = random_sphere(20000, 2);
+  many[15000] = 2 * many[40];
+  many[9000] = many[17000];
+  EXPECT_EQ(input_error([&] { solve(Sphere(), UniformDensity{}, std::span(many), equal_masses(20000)); }),
+            "sites[15000]: duplicate of sites[40] (after normalisation)");
 }
 
 TEST(SphereBadInput, HemisphereCondition) {
