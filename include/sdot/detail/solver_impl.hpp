@@ -686,8 +686,8 @@ sdot::Result<typename G::Point> sdot::detail::solve_in_order(
         // A step that empties a cell is rejected (ε₀ > 0): the builder may stop at the first one.
         Evaluation<Point> trial =
             evaluate(geometry, source, sites, trial_weights, true, &summary.timings, false, true, partial);
-        const auto trial_error = detail::mass_error(trial.masses, targets);
         if (trial.masses.minCoeff() < epsilon0) continue;
+        const auto trial_error = detail::mass_error(trial.masses, targets);
         if (trial_error.l2 <= (1 - step / 2) * error.l2) {
           weights = std::move(trial_weights);
           current = std::move(trial);
