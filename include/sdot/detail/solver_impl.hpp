@@ -179,17 +179,10 @@ inline constexpr double newton_growth_limit = 4;
 /// every ν_i, and below every accepted μ_i): ν'_i ≥ min(ν_i, 4μ_i). Near the solution no target
 /// moves and the step is Newton's.
 inline Eigen::VectorXd limit_newton_growth(const Eigen::VectorXd& rhs, const Eigen::VectorXd& masses, bool partial) {
-  Eigen::VectorXd targets = masses + rhs;
-  bool changed = false;
-  for (Eigen::Index i = 0; i < rhs.size(); ++i)
-    if (targets[i] > newton_growth_limit * masses[i]) targets[i] = newton_growth_limit * masses[i], changed = true;
-  if (!changed) return rhs;
-  Eigen::VectorXd limited;
-  if (partial) {
-    limited = rhs;
-    for (Eigen::Index i = 0; i < rhs.size(); ++i)
-      if (targets[i] < masses[i] + rhs[i]) limited[i] = targets[i] - masses[i];
-  } else {
+  Eigen::VectorXd limited = rhs.cwiseMin((newton_growth_limit - 1) * masses);
+  if (limited == rhs) return rhs;
+  if (!partial) {
+    const Eigen::VectorXd targets = masses + limited;
     limited = targets * (masses.sum() / targets.sum()) - masses;
     limited.array() -= limited.mean();  // round-off, as for Newton's right-hand side
   }
