@@ -4,10 +4,12 @@
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <mutex>
 #include <numbers>
+#include <optional>
 #include <random>
 #include <string>
 
@@ -319,6 +321,71 @@ int cost_order(double size) {
   if (size < 0.06) return 5;
   if (size < 0.15) return 6;
   return 8;
+}
+
+/// ∫ −ln⟨x, p⟩ dA over a cell with great-arc edges only that lies close to its site p: within
+/// tan²θ ≤ 10⁻³ (θ ≈ 1.8°; every cell of 10⁴ or more well-spread sites), otherwise nullopt.
+/// In the gnomonic chart at p (x ↦ x/⟨x, p⟩, |x'|² = tan²θ) the edges are segments, and in polar
+/// coordinates about p the radial integral is closed: ∫₀^R −ln(cos θ) sin θ dθ = F(tan²R) with
+/// F(t) = 1 − c + c ln c, c = (1 + t)^(−1/2). Along an edge at signed distance h from p, with
+/// arc length s from the foot of the perpendicular, t = h² + s² and dφ = h ds / t, so the cell's
+/// cost is Σ_edges ∫ h F(t)/t ds. F(t)/t is a power series in t (whose first terms cancel in
+/// floating point), hence a polynomial in s, integrated exactly by Gauss–Legendre: 5–7 points per
+/// edge instead of a 2-D rule on each fan triangle.
+std::optional<double> small_cell_cost(const Cell<Vec3>& cell, const Vec3& p) {
+  constexpr double largest_t = 1e-3;
+  const std::size_t n = cell.size();
+  // Chart positions relative to p, as 3-D vectors orthogonal to p.
+  constexpr std::size_t stack_size = 16;
+  std::array<Vec3, stack_size> stack_chart;
+  std::vector<Vec3> heap_chart;
+  Vec3* chart = stack_chart.data();
+  if (n > stack_size) {
+    heap_chart.resize(n);
+    chart = heap_chart.data();
+  }
+  double t_max = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    if (is_boundary(cell.neighbors[k])) return std::nullopt;  // a cap-circle or ball arc
+    const Vec3& x = cell.vertices[k];
+    const double c = x.dot(p);
+    if (!(c > 0)) return std::nullopt;
+    chart[k] = (x - c * p) / c;
+    t_max = std::max(t_max, chart[k].squaredNorm());
+  }
+  if (!(t_max <= largest_t)) return std::nullopt;
+  // F(t)/t = Σ_k series[k] t^(k+1); with 6 terms the first omitted one is below 2e-18 of the
+  // value at t ≤ 10⁻³. A polynomial of degree 2·terms in s needs terms + 1 Gauss points.
+  static constexpr std::array<double, 6> series = {1.0 / 8,     -1.0 / 6,       71.0 / 384,
+                                                   -31.0 / 160, 3043.0 / 15360, -2689.0 / 13440};
+  const int terms = t_max <= 1e-5 ? 4 : t_max <= 1e-4 ? 5 : 6;
+  static const std::array<std::vector<QuadratureNode1>, 3> rules = {gauss_legendre(5), gauss_legendre(6),
+                                                                    gauss_legendre(7)};
+  const auto& rule = rules[static_cast<std::size_t>(terms - 4)];
+  double cost = 0, magnitude = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const Vec3& a = chart[k];
+    const Vec3& b = chart[(k + 1) % n];
+    const Vec3 d = b - a;
+    const double length = d.norm();
+    if (length == 0) continue;
+    const Vec3 direction = d / length;
+    const double h = p.dot(a.cross(direction));  // positive for a counter-clockwise edge
+    const double s_a = a.dot(direction);
+    double edge = 0;
+    for (const auto& node : rule) {
+      const double s = s_a + node.x * length, t = h * h + s * s;
+      double value = series[static_cast<std::size_t>(terms - 1)];
+      for (int j = terms - 2; j >= 0; --j) value = series[static_cast<std::size_t>(j)] + t * value;
+      edge += node.weight * t * value;
+    }
+    cost += h * length * edge;
+    magnitude += std::abs(h * length * edge);
+  }
+  // A site far outside its (small) cell: the signed fan from p cancels, losing digits; the 2-D
+  // rule, fanned from the cell's own centre, does not.
+  if (!(magnitude <= 2 * cost)) return std::nullopt;
+  return cost;
 }
 
 }  // namespace
@@ -984,6 +1051,10 @@ CellIntegrals<Sphere::Point> Sphere::integrate(const Cell<Point>& cell, const Po
   result.mass = area;
   result.first_moment = moment;
   if (!with_cost) return result;  // the cost quadrature is most of this function's time
+  if (const auto cost = small_cell_cost(cell, p)) {
+    result.cost = *cost;
+    return result;
+  }
   double cost = 0;
   for_each_node(
       *this, cell, cost_order, [&](const Vec3& x, double w) { cost += w * log_cost(x, p); }, &p);
