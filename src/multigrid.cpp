@@ -140,12 +140,12 @@ RowMatrix product(const RowMatrix& a, const RowMatrix& b) {
 }
 
 struct Level {
-  RowMatrix matrix;                   // A (symmetric); kept on the finest level only, once built
-  SingleRows single;                  // A in single precision, for the V-cycle
-  Eigen::VectorXd diagonal;           // a_ii
-  Eigen::VectorXd smoother_diagonal;  // see smoother_diagonal()
-  SingleRows prolongation;            // P: this level's unknowns from the next level's
-  SingleRows restriction;             // Pᵀ
+  RowMatrix matrix;                  // A (symmetric); kept on the finest level only, once built
+  SingleRows single;                 // A in single precision, for the V-cycle
+  Eigen::VectorXd diagonal;          // a_ii
+  Eigen::VectorXd smoother_inverse;  // 1 / the divisors of smoother_diagonal()
+  SingleRows prolongation;           // P: this level's unknowns from the next level's
+  SingleRows restriction;            // Pᵀ
   mutable Eigen::VectorXd rhs, x, residual, previous;
 };
 
@@ -277,7 +277,8 @@ void gauss_seidel(const Level& level, bool forward, bool from_zero) {
         const int j = a.column[k];
         residual -= double(a.value[k]) * (blocks == 1 || (j >= first && j < last) ? level.x[j] : level.previous[j]);
       }
-      level.x[i] += residual / level.smoother_diagonal[i];
+      // A product, not a division: the next row waits for this x_i.
+      level.x[i] += residual * level.smoother_inverse[i];
     }
   }
 }
@@ -378,7 +379,7 @@ void MultigridSolver::compute(const SparseMatrix& matrix) {
       h.info = Eigen::NumericalIssue;
       return;
     }
-    finest.smoother_diagonal = smoother_diagonal(a, diagonal);
+    finest.smoother_inverse = smoother_diagonal(a, diagonal).cwiseInverse();
     finest.single = to_single(a);
     finest.matrix = std::move(a);
     finest.diagonal = std::move(diagonal);
@@ -407,7 +408,7 @@ void MultigridSolver::Hierarchy::build(RowMatrix finest_matrix, const Settings& 
       info = Eigen::NumericalIssue;
       return;
     }
-    level.smoother_diagonal = smoother_diagonal(level.matrix, level.diagonal);
+    level.smoother_inverse = smoother_diagonal(level.matrix, level.diagonal).cwiseInverse();
     const int n = level.matrix.rows;
     level.rhs.resize(n), level.x.resize(n), level.residual.resize(n);
     if (n <= settings.coarse_size || static_cast<int>(levels.size()) >= settings.max_levels) break;
