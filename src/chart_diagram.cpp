@@ -978,19 +978,33 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
     if (stopped) return stopped_hull();
   }
 
-  for (int h = 0; h < surface.half_edges(); ++h)  // the final check: every live edge convex
-    if (surface.alive(h) && surface.reflex(h)) return std::nullopt;
+  // The final check, every live edge convex, and the largest facet offset: in parallel (both
+  // reductions are exact, so the result does not depend on the thread count).
+  const int half_edges = surface.half_edges();
+  bool reflex_left = false;
+#pragma omp parallel for schedule(static, 4096) reduction(|| : reflex_left)
+  for (int h = 0; h < half_edges; ++h)
+    if (surface.alive(h) && surface.reflex(h)) reflex_left = true;
+  if (reflex_left) return std::nullopt;
   surface.compact();
   Hull3 hull;
   hull.is_vertex = std::move(on_surface);
-  hull.max_facet_offset = -INFINITY;
-  for (const auto& t : start.triangles) {
-    if (!surface.faces_out(t[0], t[1], t[2])) return std::nullopt;
+  double max_offset = -INFINITY;
+  bool degenerate = false;
+  const auto triangle_count = static_cast<std::ptrdiff_t>(start.triangles.size());
+#pragma omp parallel for schedule(static, 4096) reduction(max : max_offset) reduction(|| : degenerate)
+  for (std::ptrdiff_t k = 0; k < triangle_count; ++k) {
+    const auto& t = start.triangles[static_cast<std::size_t>(k)];
     const Vec3 normal = (surface.point(t[1]) - surface.point(t[0])).cross(surface.point(t[2]) - surface.point(t[0]));
     const double length = normal.norm();
-    if (!(length > 0)) return std::nullopt;
-    hull.max_facet_offset = std::max(hull.max_facet_offset, -normal.dot(surface.point(t[0])) / length);
+    if (!surface.faces_out(t[0], t[1], t[2]) || !(length > 0)) {
+      degenerate = true;
+      continue;
+    }
+    max_offset = std::max(max_offset, -normal.dot(surface.point(t[0])) / length);
   }
+  if (degenerate) return std::nullopt;
+  hull.max_facet_offset = max_offset;
   hull.edges = triangles_to_adjacency(start.triangles, n, true);
   hull.surface = std::move(start);
   return hull;
