@@ -70,6 +70,44 @@ inline std::size_t at(int i) {
 /// result independent of the number of threads.
 constexpr int block_rows = 4096;
 
+/// The conjugate gradients' vector operations, on both cores: at 10⁶ unknowns they were a tenth of
+/// an iteration, on one. Sums are taken per block of `block_rows` entries and the blocks' partial
+/// sums added in order, so they do not depend on the number of threads.
+template <class Body>
+void for_each_block(Eigen::Index n, Body&& body) {
+  const auto blocks = static_cast<int>((n + block_rows - 1) / block_rows);
+#pragma omp parallel for schedule(static) if (blocks > 2)
+  for (int block = 0; block < blocks; ++block)
+    body(Eigen::Index(block) * block_rows, std::min<Eigen::Index>(n, Eigen::Index(block + 1) * block_rows));
+}
+
+/// Σ_i term(i) over [0, n), summed per block as above.
+template <class Term>
+double block_sum(Eigen::Index n, Term&& term) {
+  const auto blocks = static_cast<int>((n + block_rows - 1) / block_rows);
+  std::vector<double> partial(static_cast<std::size_t>(blocks), 0.0);
+  for_each_block(n, [&](Eigen::Index first, Eigen::Index last) {
+    double sum = 0;
+    for (Eigen::Index i = first; i < last; ++i) sum += term(i);
+    partial[static_cast<std::size_t>(first / block_rows)] = sum;
+  });
+  double total = 0;
+  for (double value : partial) total += value;
+  return total;
+}
+
+double dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  return block_sum(a.size(), [&](Eigen::Index i) { return a[i] * b[i]; });
+}
+
+/// to = from
+void copy(const Eigen::VectorXd& from, Eigen::VectorXd& to) {
+  to.resize(from.size());
+  for_each_block(from.size(), [&](Eigen::Index first, Eigen::Index last) {
+    std::copy(from.data() + first, from.data() + last, to.data() + first);
+  });
+}
+
 /// y = A·x (in double precision whatever A's)
 template <class Real>
 void multiply(const Rows<Real>& a, const Eigen::VectorXd& x, Eigen::VectorXd& y) {
@@ -277,7 +315,7 @@ void gauss_seidel(const Level& level, bool forward, bool from_zero) {
     if (from_zero)
       level.previous.setZero(n);
     else
-      level.previous = level.x;
+      copy(level.x, level.previous);
   }
 #pragma omp parallel for schedule(static) if (blocks > 1)
   for (int block = 0; block < blocks; ++block) {
@@ -344,7 +382,9 @@ struct MultigridSolver::Hierarchy {
     gauss_seidel(level, true, true);
     for (int sweep = 1; sweep < smoothing_sweeps; ++sweep) gauss_seidel(level, true, false);
     multiply(level.single, level.x, level.residual);
-    level.residual = level.rhs - level.residual;
+    for_each_block(level.residual.size(), [&](Eigen::Index first, Eigen::Index last) {
+      for (Eigen::Index i = first; i < last; ++i) level.residual[i] = level.rhs[i] - level.residual[i];
+    });
     multiply(level.restriction, level.residual, levels[l + 1].rhs);
     cycle(l + 1);
     const Eigen::VectorXd& coarse_x = levels[l + 1].x;
@@ -540,10 +580,20 @@ Eigen::VectorXd MultigridSolver::Hierarchy::conjugate_gradients(const Eigen::Vec
     return x;
   }
   const bool scaled = h.scale.size() == n;
-  const double rhs_norm = rhs.norm();
+  const double rhs_norm = std::sqrt(dot(rhs, rhs));
+  std::vector<double> block_max(static_cast<std::size_t>((n + block_rows - 1) / block_rows));
   auto converged = [&](const Eigen::VectorXd& r) {  // records both measures
-    h.last_error = rhs_norm > 0 ? r.norm() / rhs_norm : r.norm();
-    h.last_scaled_error = scaled ? (h.scale.array() * r.array().abs()).maxCoeff() : 0.0;
+    const double r_norm = std::sqrt(dot(r, r));
+    h.last_error = rhs_norm > 0 ? r_norm / rhs_norm : r_norm;
+    h.last_scaled_error = 0;
+    if (scaled) {
+      for_each_block(n, [&](Eigen::Index first, Eigen::Index last) {
+        double largest = 0;
+        for (Eigen::Index i = first; i < last; ++i) largest = std::max(largest, h.scale[i] * std::abs(r[i]));
+        block_max[static_cast<std::size_t>(first / block_rows)] = largest;
+      });
+      for (double value : block_max) h.last_scaled_error = std::max(h.last_scaled_error, value);
+    }
     return h.last_error <= h.tolerance && h.last_scaled_error <= h.scaled_tolerance;
   };
   Eigen::VectorXd r = rhs, z(n), p(n), q(n);
@@ -553,24 +603,25 @@ Eigen::VectorXd MultigridSolver::Hierarchy::conjugate_gradients(const Eigen::Vec
   }
   const Level& finest = h.levels.front();
   auto precondition = [&](const Eigen::VectorXd& residual, Eigen::VectorXd& out) {
-    finest.rhs = residual;
+    copy(residual, finest.rhs);
     h.cycle(0);
-    out = finest.x;
+    out.swap(finest.x);  // the next cycle overwrites finest.x anyway
   };
   precondition(r, z);
-  p = z;
-  double rz = r.dot(z);
+  copy(z, p);
+  double rz = dot(r, z);
   h.solve_info = Eigen::NoConvergence;
   while (h.last_iterations < h.max_iterations) {
     multiply(finest.matrix, p, q);
-    const double pq = p.dot(q);
+    const double pq = dot(p, q);
     if (!(pq > 0) || !std::isfinite(pq)) {
       h.solve_info = Eigen::NumericalIssue;
       break;
     }
     const double alpha = rz / pq;
-    x += alpha * p;
-    r -= alpha * q;
+    for_each_block(n, [&](Eigen::Index first, Eigen::Index last) {
+      for (Eigen::Index i = first; i < last; ++i) x[i] += alpha * p[i], r[i] -= alpha * q[i];
+    });
     ++h.last_iterations;
     bool restart = false;
     if (converged(r)) {
@@ -585,8 +636,10 @@ Eigen::VectorXd MultigridSolver::Hierarchy::conjugate_gradients(const Eigen::Vec
       restart = true;
     }
     precondition(r, z);
-    const double rz_next = r.dot(z);
-    p = restart ? z : Eigen::VectorXd(z + (rz_next / rz) * p);
+    const double rz_next = dot(r, z), beta = restart ? 0.0 : rz_next / rz;
+    for_each_block(n, [&](Eigen::Index first, Eigen::Index last) {
+      for (Eigen::Index i = first; i < last; ++i) p[i] = z[i] + beta * p[i];
+    });
     rz = rz_next;
   }
   return x;
