@@ -41,9 +41,10 @@ struct Options {
   /// With `rescale_masses` false: the largest accepted relative difference (≥ 0) between the
   /// target masses' sum and the source mass. The masses are still rescaled by the small factor.
   double mass_sum_tolerance = 1e-9;
-  /// Below this max relative mass error, failing to make progress (no acceptable step, or three
-  /// damped steps ≤ 1/16 in a row) means the problem's precision floor was reached: the solver
-  /// stops with Status::precision_floor instead of a failure (≥ 0; 0 turns that off).
+  /// Below this max relative mass error, failing to make progress (no acceptable step down to
+  /// 2⁻¹⁰, where the line search then stops, or three damped steps ≤ 1/16 in a row) means the
+  /// problem's precision floor was reached: the solver stops with Status::precision_floor instead
+  /// of a failure (≥ 0; 0 turns that off).
   double precision_floor_threshold = 1e-7;
   /// Integrate the transport cost on the final cells (`Result::transport_cost`). It is needed
   /// only there, and costs a pass of cost quadratures over every cell (sphere, 134,000 cells:

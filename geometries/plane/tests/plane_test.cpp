@@ -2,6 +2,8 @@
 // domain, densities, bad input).
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <memory>
 #include <numbers>
 #include <random>
 
@@ -232,6 +234,44 @@ TEST(Plane, PrecisionFloorIsAStatusNotAFailure) {
   EXPECT_FALSE(result.summary.converged());
   EXPECT_LT(result.summary.max_relative_error, 1e-11);
   EXPECT_NE(result.summary.message.find("precision floor"), std::string::npos);
+}
+
+// Counts the cells it integrates: a solve's diagram evaluations are the count over the sites.
+struct CountingDensity {
+  std::shared_ptr<std::atomic<long>> cells = std::make_shared<std::atomic<long>>(0);
+  template <class G>
+  [[nodiscard]] CellIntegrals<typename G::Point> integrate_cell(const G& geometry, const Cell<typename G::Point>& cell,
+                                                                const typename G::Point& site,
+                                                                bool with_cost = true) const {
+    ++*cells;
+    return geometry.integrate(cell, site, with_cost);
+  }
+  template <class G>
+  [[nodiscard]] double facet_weight(const G& geometry, const typename G::Point& a, const typename G::Point& b,
+                                    const typename G::Point& site_i, double weight_i, const typename G::Point& site_j,
+                                    double weight_j) const {
+    return geometry.facet_weight(a, b, site_i, weight_i, site_j, weight_j);
+  }
+};
+
+TEST(Plane, PrecisionFloorStopsTheLineSearchEarly) {
+  // At the floor no step decreases the error, and each halving costs a diagram (H², 10⁷ sites: 40
+  // of them, minutes): near the floor the line search stops at step 2⁻¹⁰.
+  const auto sites = random_unit_square(2000, 12);
+  Options options;
+  options.tolerance = 1e-17;  // below double precision
+  const CountingDensity density;
+  const auto result = solve(Plane(), density, std::span(sites), equal_masses(2000), options);
+  ASSERT_EQ(result.summary.status, Status::precision_floor) << result.summary.message;
+  const long evaluations = *density.cells / 2000;
+  // the start, the trials of each accepted step (step 2⁻ᵏ after k rejected ones), those of the last
+  // line search (at most 11), the restored diagram and the transport cost's pass
+  long accepted_trials = 0;
+  for (const auto& record : result.summary.history)
+    if (record.iteration > 0) accepted_trials += 1 + std::lround(-std::log2(record.step));
+  std::printf("  %d iterations, %ld diagram evaluations, %ld for the accepted steps\n", result.summary.iterations,
+              evaluations, accepted_trials);
+  EXPECT_LE(evaluations, 1 + accepted_trials + 11 + 1 + 1);
 }
 
 TEST(Plane, LargeProblemsReachTightTolerances) {
