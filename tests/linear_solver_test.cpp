@@ -254,6 +254,30 @@ TEST(Multigrid, SameSolutionWhateverTheThreadCount) {
   EXPECT_EQ(one, three);
 }
 
+TEST(Multigrid, ParallelVectorOperationsGiveTheSameSolutionWhateverTheThreadCount) {
+  // 270,400 rows: enough blocks for the conjugate gradients' vector operations and block sums to
+  // run in parallel; their sums are added per block, in order, whatever the threads.
+  const sdot::SparseMatrix matrix = weighted_laplacian(520, 4);
+  const Eigen::VectorXd rhs = zero_sum_rhs(matrix.rows(), 5);
+  sdot::MultigridSolver multigrid;
+  multigrid.setTolerance(1e-12);
+  multigrid.setMaxIterations(5);  // five iterations, converged or not, are enough to compare
+  multigrid.compute(matrix);
+  ASSERT_EQ(multigrid.info(), Eigen::Success);
+  auto solve_with_threads = [&](int threads) {
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(threads);
+    Eigen::VectorXd x = multigrid.solve(rhs);
+    EXPECT_EQ(multigrid.iterations(), 5);
+    omp_set_num_threads(saved);
+    return x;
+  };
+  const Eigen::VectorXd one = solve_with_threads(1), two = solve_with_threads(2), three = solve_with_threads(3);
+  EXPECT_EQ(one, two);
+  EXPECT_EQ(one, three);
+  EXPECT_LT((rhs - matrix * one).norm(), 0.5 * rhs.norm());  // and they did solve something
+}
+
 TEST(LinearSolver, AutomaticUsesMultigridAndFallsBackWhenItFails) {
   const sdot::SparseMatrix matrix = weighted_laplacian(130, 9);  // 16,900 unknowns: multigrid by default
   ASSERT_GE(matrix.rows(), sdot::AutomaticLinearSolver::default_multigrid_size);
