@@ -216,8 +216,7 @@ void clip(ChartCell& cell, const Vec2& normal, double offset, int label) {
     return;
   }
   // Written by index into buffers sized for the most the loop can emit (two per edge; a convex
-  // cell gives at most n + 1): a push_back's capacity check per vertex was a tenth of the
-  // sphere builder's clipping.
+  // cell gives at most n + 1), without a push_back's capacity check per vertex.
   thread_local ChartCell out;
   out.vertices.resize(2 * n);
   out.neighbors.resize(2 * n);
