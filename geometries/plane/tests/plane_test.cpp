@@ -237,20 +237,14 @@ TEST(Plane, PrecisionFloorIsAStatusNotAFailure) {
 }
 
 // Counts the cells it integrates: a solve's diagram evaluations are the count over the sites.
-struct CountingDensity {
+struct CountingDensity : UniformDensity {
   std::shared_ptr<std::atomic<long>> cells = std::make_shared<std::atomic<long>>(0);
   template <class G>
   [[nodiscard]] CellIntegrals<typename G::Point> integrate_cell(const G& geometry, const Cell<typename G::Point>& cell,
                                                                 const typename G::Point& site,
                                                                 bool with_cost = true) const {
     ++*cells;
-    return geometry.integrate(cell, site, with_cost);
-  }
-  template <class G>
-  [[nodiscard]] double facet_weight(const G& geometry, const typename G::Point& a, const typename G::Point& b,
-                                    const typename G::Point& site_i, double weight_i, const typename G::Point& site_j,
-                                    double weight_j) const {
-    return geometry.facet_weight(a, b, site_i, weight_i, site_j, weight_j);
+    return UniformDensity::integrate_cell(geometry, cell, site, with_cost);
   }
 };
 
