@@ -9,6 +9,7 @@
 #include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 
 namespace sdot {
@@ -16,7 +17,9 @@ namespace {
 
 /// Compressed sparse rows. The index arrays are the matrix's own, or borrowed from another
 /// matrix of the same pattern (`shared_start`, `shared_column`): the finest level's
-/// single-precision copy borrows those of the double-precision matrix, 32 MB at 10⁶ rows.
+/// single-precision copy borrows those of the double-precision matrix, 32 MB at 10⁶ rows. A
+/// borrowing matrix has empty `start` and `column`: read its pattern through starts(), columns(),
+/// row_begin() and row_end().
 template <class Real>
 struct Rows {
   int rows = 0, cols = 0;
@@ -27,12 +30,8 @@ struct Rows {
 
   [[nodiscard]] const int* starts() const { return shared_start ? shared_start : start.data(); }
   [[nodiscard]] const int* columns() const { return shared_column ? shared_column : column.data(); }
-  [[nodiscard]] std::size_t row_begin(int i) const {
-    return static_cast<std::size_t>(start[static_cast<std::size_t>(i)]);
-  }
-  [[nodiscard]] std::size_t row_end(int i) const {
-    return static_cast<std::size_t>(start[static_cast<std::size_t>(i) + 1]);
-  }
+  [[nodiscard]] std::size_t row_begin(int i) const { return static_cast<std::size_t>(starts()[i]); }
+  [[nodiscard]] std::size_t row_end(int i) const { return static_cast<std::size_t>(starts()[i + 1]); }
 };
 
 /// The hierarchy is built in double precision; the V-cycle (smoothing, restriction and
@@ -70,14 +69,14 @@ inline std::size_t at(int i) {
 /// result independent of the number of threads.
 constexpr int block_rows = 4096;
 
-/// The conjugate gradients' vector operations, on both cores: at 10⁶ unknowns they were a tenth of
-/// an iteration, on one. Sums are taken per block of `block_rows` entries and the blocks' partial
-/// sums added in order, so they do not depend on the number of threads.
 /// From how many blocks the vector operations run in parallel: below it (10⁵ unknowns, 25 blocks)
 /// waking the second thread for each operation cost more than it saved (sphere, 10⁵ sites: linear
 /// solves 0.58 → 0.61 s).
 constexpr int parallel_vector_blocks = 64;
 
+/// The conjugate gradients' vector operations, block by block of `block_rows` entries, on both
+/// cores for long vectors (at 10⁶ unknowns they were a tenth of an iteration on one). Sums add the
+/// blocks' partial sums in order, so they do not depend on the number of threads.
 template <class Body>
 void for_each_block(Eigen::Index n, Body&& body) {
   const auto blocks = static_cast<int>((n + block_rows - 1) / block_rows);
@@ -86,23 +85,25 @@ void for_each_block(Eigen::Index n, Body&& body) {
     body(Eigen::Index(block) * block_rows, std::min<Eigen::Index>(n, Eigen::Index(block + 1) * block_rows));
 }
 
-/// Σ_i term(i) over [0, n), summed per block as above.
-template <class Term>
-double block_sum(Eigen::Index n, Term&& term) {
+/// term(0) ⊕ … ⊕ term(n − 1) for ⊕ = `combine` from `identity`, per block as above, the blocks'
+/// results combined in order.
+template <class Term, class Combine>
+double block_reduce(Eigen::Index n, double identity, Term&& term, Combine&& combine) {
   const auto blocks = static_cast<int>((n + block_rows - 1) / block_rows);
-  std::vector<double> partial(static_cast<std::size_t>(blocks), 0.0);
+  std::vector<double> partial(static_cast<std::size_t>(blocks), identity);
   for_each_block(n, [&](Eigen::Index first, Eigen::Index last) {
-    double sum = 0;
-    for (Eigen::Index i = first; i < last; ++i) sum += term(i);
-    partial[static_cast<std::size_t>(first / block_rows)] = sum;
+    double value = identity;
+    for (Eigen::Index i = first; i < last; ++i) value = combine(value, term(i));
+    partial[static_cast<std::size_t>(first / block_rows)] = value;
   });
-  double total = 0;
-  for (double value : partial) total += value;
+  double total = identity;
+  for (double value : partial) total = combine(total, value);
   return total;
 }
 
 double dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
-  return block_sum(a.size(), [&](Eigen::Index i) { return a[i] * b[i]; });
+  return block_reduce(
+      a.size(), 0.0, [&](Eigen::Index i) { return a[i] * b[i]; }, std::plus<>());
 }
 
 /// to = from
@@ -586,19 +587,13 @@ Eigen::VectorXd MultigridSolver::Hierarchy::conjugate_gradients(const Eigen::Vec
   }
   const bool scaled = h.scale.size() == n;
   const double rhs_norm = std::sqrt(dot(rhs, rhs));
-  std::vector<double> block_max(static_cast<std::size_t>((n + block_rows - 1) / block_rows));
   auto converged = [&](const Eigen::VectorXd& r) {  // records both measures
     const double r_norm = std::sqrt(dot(r, r));
     h.last_error = rhs_norm > 0 ? r_norm / rhs_norm : r_norm;
-    h.last_scaled_error = 0;
-    if (scaled) {
-      for_each_block(n, [&](Eigen::Index first, Eigen::Index last) {
-        double largest = 0;
-        for (Eigen::Index i = first; i < last; ++i) largest = std::max(largest, h.scale[i] * std::abs(r[i]));
-        block_max[static_cast<std::size_t>(first / block_rows)] = largest;
-      });
-      for (double value : block_max) h.last_scaled_error = std::max(h.last_scaled_error, value);
-    }
+    h.last_scaled_error = scaled ? block_reduce(
+                                       n, 0.0, [&](Eigen::Index i) { return h.scale[i] * std::abs(r[i]); },
+                                       [](double a, double b) { return std::max(a, b); })
+                                 : 0.0;
     return h.last_error <= h.tolerance && h.last_scaled_error <= h.scaled_tolerance;
   };
   Eigen::VectorXd r = rhs, z(n), p(n), q(n);
