@@ -198,6 +198,32 @@ double ConvexPolygon::radius() const {
   return r;
 }
 
+bool cell_from_ordered_lines(ChartCell& cell, std::span<const Vec2> normals, std::span<const double> offsets,
+                             std::span<const int> labels, double bound) {
+  const std::size_t n = normals.size();
+  if (n < 3 || offsets.size() != n || labels.size() != n) return false;
+  cell.vertices.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t previous = k == 0 ? n - 1 : k - 1;
+    const Vec2& a = normals[previous];
+    const Vec2& b = normals[k];
+    const double det = a.x() * b.y() - a.y() * b.x();
+    if (!(det > 0)) return false;
+    const Vec2 v((offsets[k] * a.y() - offsets[previous] * b.y()) / det,
+                 (offsets[previous] * b.x() - offsets[k] * a.x()) / det);
+    if (!(std::abs(v.x()) <= bound && std::abs(v.y()) <= bound)) return false;
+    cell.vertices[k] = v;
+  }
+  // Edge k runs from vertex k to vertex k + 1 along line k, in the direction of its inward normal
+  // turned clockwise.
+  for (std::size_t k = 0; k < n; ++k) {
+    const Vec2 along = cell.vertices[k + 1 == n ? 0 : k + 1] - cell.vertices[k];
+    if (along.x() * normals[k].y() - along.y() * normals[k].x() < 0) return false;
+  }
+  cell.neighbors.assign(labels.begin(), labels.end());
+  return true;
+}
+
 void clip(ChartCell& cell, const Vec2& normal, double offset, int label) {
   const std::size_t n = cell.vertices.size();
   if (n == 0) return;
@@ -886,8 +912,8 @@ HullTriangulation tetrahedron_around_origin(std::span<const Vec3> points) {
 
 }  // namespace
 
-std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullTriangulation start,
-                                             bool stop_at_inside) {
+std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullTriangulation start, bool stop_at_inside,
+                                             bool with_edges) {
   const std::size_t n = points.size();
   if (start.triangles.empty()) start = tetrahedron_around_origin(points);
   if (start.triangles.empty() || start.opposite.size() != 3 * start.triangles.size()) return std::nullopt;
@@ -1004,7 +1030,7 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
   }
   if (degenerate) return std::nullopt;
   hull.max_facet_offset = max_offset;
-  hull.edges = triangles_to_adjacency(start.triangles, n, true);
+  if (with_edges) hull.edges = triangles_to_adjacency(start.triangles, n, true);
   hull.surface = std::move(start);
   return hull;
 }

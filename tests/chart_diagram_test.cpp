@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <limits>
+#include <numbers>
 #include <optional>
 #include <random>
 #include <string>
@@ -563,6 +564,104 @@ TEST(ChartDiagram, ClipKeepsLabels) {
   int sevens = 0;
   for (int label : cell.neighbors) sevens += label == 7;
   EXPECT_EQ(sevens, 1);
+}
+
+/// Random lines around a point, counter-clockwise (tangent to circles of radii 0.5–1.5 around
+/// `center` at sorted angles with gaps below π, so that they bound a cell).
+void random_ordered_lines(std::mt19937_64& random, const Vec2& center, std::vector<Vec2>& normals,
+                          std::vector<double>& offsets) {
+  std::uniform_real_distribution<double> unit(0, 1);
+  const int count = 3 + static_cast<int>(unit(random) * 10);
+  std::vector<double> angles;
+  do {
+    angles.clear();
+    for (int k = 0; k < count; ++k) angles.push_back(2 * std::numbers::pi * unit(random));
+    std::sort(angles.begin(), angles.end());
+  } while ([&] {
+    for (std::size_t k = 0; k < angles.size(); ++k)
+      if ((k + 1 < angles.size() ? angles[k + 1] : angles[0] + 2 * std::numbers::pi) - angles[k] >=
+          0.9 * std::numbers::pi)
+        return true;
+    return false;
+  }());
+  normals.clear(), offsets.clear();
+  for (double angle : angles) {
+    const Vec2 outward(std::cos(angle), std::sin(angle));
+    normals.push_back(-outward);  // keep (v − center)·outward ≤ radius
+    offsets.push_back(outward.dot(center) + 0.5 + unit(random));
+  }
+}
+
+TEST(ChartDiagram, CellFromOrderedLinesIsTheClippedCell) {
+  // Where it answers, the cell read off the ordered lines is the one clipping a large square by
+  // them gives (same labels in the same cyclic order, same vertices); where it declines, one of
+  // the lines does not bound the cell (so a triangulation could not have listed it).
+  std::mt19937_64 random(5);
+  std::vector<Vec2> normals;
+  std::vector<double> offsets;
+  int answered = 0, declined = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const Vec2 center(std::uniform_real_distribution<double>(-3, 3)(random),
+                      std::uniform_real_distribution<double>(-3, 3)(random));
+    random_ordered_lines(random, center, normals, offsets);
+    std::vector<int> labels(normals.size());
+    for (std::size_t k = 0; k < labels.size(); ++k) labels[k] = static_cast<int>(10 * k + 3);
+    ChartCell clipped{{{-100, -100}, {100, -100}, {100, 100}, {-100, 100}}, {-1, -2, -3, -4}};
+    for (std::size_t k = 0; k < normals.size(); ++k) clip(clipped, normals[k], offsets[k], labels[k]);
+    ASSERT_TRUE(std::none_of(clipped.neighbors.begin(), clipped.neighbors.end(), is_boundary));
+    ChartCell cell;
+    if (!cell_from_ordered_lines(cell, normals, offsets, labels, 50)) {
+      ++declined;
+      EXPECT_LT(clipped.size(), normals.size()) << "trial " << trial;
+      continue;
+    }
+    ++answered;
+    ASSERT_EQ(cell.size(), clipped.size()) << "trial " << trial;
+    const auto shift = static_cast<std::size_t>(
+        std::find(clipped.neighbors.begin(), clipped.neighbors.end(), cell.neighbors[0]) - clipped.neighbors.begin());
+    ASSERT_LT(shift, clipped.size());
+    for (std::size_t k = 0; k < cell.size(); ++k) {
+      const std::size_t m = (k + shift) % clipped.size();
+      EXPECT_EQ(cell.neighbors[k], clipped.neighbors[m]) << "trial " << trial << ", edge " << k;
+      EXPECT_LT((cell.vertices[k] - clipped.vertices[m]).norm(), 1e-12) << "trial " << trial << ", vertex " << k;
+    }
+  }
+  // both outcomes happen on these lines
+  EXPECT_GT(answered, 300);
+  EXPECT_GT(declined, 100);
+}
+
+TEST(ChartDiagram, CellFromOrderedLinesDeclinesWhatItCannotCertify) {
+  // the unit square's four sides, counter-clockwise: bottom, right, top, left
+  const std::vector<Vec2> normals{{0, 1}, {-1, 0}, {0, -1}, {1, 0}};
+  const std::vector<double> offsets{1, 1, 1, 1};
+  const std::vector<int> labels{0, 1, 2, 3};
+  ChartCell cell;
+  ASSERT_TRUE(cell_from_ordered_lines(cell, normals, offsets, labels, 1));
+  ASSERT_EQ(cell.size(), 4u);
+  EXPECT_EQ(cell.vertices[0], Vec2(-1, -1));  // where the left side (line 3) meets the bottom (line 0)
+  EXPECT_EQ(cell.neighbors, labels);
+  EXPECT_FALSE(cell_from_ordered_lines(cell, normals, offsets, labels, 0.99));  // a vertex beyond the bound
+  // clockwise order
+  const std::vector<Vec2> reversed(normals.rbegin(), normals.rend());
+  EXPECT_FALSE(cell_from_ordered_lines(cell, reversed, offsets, labels, 10));
+  // two consecutive parallel lines
+  std::vector<Vec2> parallel = normals;
+  parallel[1] = parallel[0];
+  EXPECT_FALSE(cell_from_ordered_lines(cell, parallel, offsets, labels, 10));
+  // a line that misses the cell (y ≥ 0.1x − 3, below the bottom y ≥ −1): an edge of negative length
+  const std::vector<Vec2> five{{0, 1}, {-0.1, 1}, {-1, 0}, {0, -1}, {1, 0}};
+  const std::vector<double> five_offsets{1, 3, 1, 1, 1};
+  const std::vector<int> five_labels{0, 1, 2, 3, 4};
+  EXPECT_FALSE(cell_from_ordered_lines(cell, five, five_offsets, five_labels, 100));
+  std::vector<double> touching = five_offsets;
+  touching[1] = 1.05;  // y ≥ 0.1x − 1.05 cuts the corner (1, −1) off: five edges
+  ASSERT_TRUE(cell_from_ordered_lines(cell, five, touching, five_labels, 100));
+  EXPECT_EQ(cell.size(), 5u);
+  // fewer than three lines, or lists of different lengths
+  EXPECT_FALSE(cell_from_ordered_lines(cell, std::span(normals).first(2), std::span(offsets).first(2),
+                                       std::span(labels).first(2), 10));
+  EXPECT_FALSE(cell_from_ordered_lines(cell, normals, std::span(offsets).first(3), labels, 10));
 }
 
 }  // namespace

@@ -62,6 +62,17 @@ using ChartCell = Cell<Vec2>;
 /// Clips `cell` with the half-plane {v : n·v + offset ≥ 0}; the new edge gets `label`.
 void clip(ChartCell& cell, const Vec2& normal, double offset, int label);
 
+/// The convex cell bounded by `count` = normals.size() lines given in counter-clockwise order
+/// around it: line k is the boundary of the half-plane {v : normals[k]·v + offsets[k] ≥ 0}, edge k
+/// lies on it with label labels[k], and vertex k is where lines k − 1 and k cross. This reads a
+/// Laguerre cell off a triangulation (its neighbours around a vertex) without clipping. Returns
+/// false, leaving `cell` unspecified, when that is not certain at the working precision:
+/// consecutive normals that do not turn counter-clockwise (parallel lines among them), an edge
+/// of negative length (a line that does not bound the cell), a vertex outside |v|∞ ≤ `bound`,
+/// or fewer than 3 lines. The caller then clips.
+bool cell_from_ordered_lines(ChartCell& cell, std::span<const Vec2> normals, std::span<const double> offsets,
+                             std::span<const int> labels, double bound);
+
 /// Neighbour candidates for a set of affine functions f_i(v) = a_i·(v, 1), in CSR form:
 /// the neighbours of site i are `neighbors[k]` for `offsets[i]` ≤ k < `offsets[i + 1]`
 /// (of(i)). Always a superset of
@@ -178,8 +189,9 @@ Hull3 convex_hull_3d(std::span<const Vec3> points, bool with_surface = false);
 /// does not exist, no tetrahedron holds the origin, a reflex edge stays stuck (rare from an old
 /// hull; the caller may then start from scratch), or a walk or the flips run too long. The caller
 /// then runs convex_hull_3d. With `stop_at_inside`, stops at the first point found inside (an
-/// empty Laguerre cell; see Hull3::stopped_at_inside).
+/// empty Laguerre cell; see Hull3::stopped_at_inside). Without `with_edges`, Hull3::edges is left
+/// empty (a caller that walks `surface` does not need it).
 std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullTriangulation start,
-                                             bool stop_at_inside = false);
+                                             bool stop_at_inside = false, bool with_edges = true);
 
 }  // namespace sdot

@@ -241,6 +241,23 @@ inline HalfPlane bisector(const Eigen::Matrix3d& frame, const Vec3& p_i, double 
   return {Vec2(-d.dot(frame.col(0)), -d.dot(frame.col(1))), std::expm1(hi - hj) + 0.5 * d.squaredNorm()};
 }
 
+/// The neighbours of a vertex of a closed triangulated surface in counter-clockwise order seen
+/// from outside, appended to `ring`, from `first`, a half-edge out of the vertex (3t + k: corner
+/// k of triangle t). False when the surface is not closed around the vertex.
+bool hull_neighbours(const HullTriangulation& surface, int first, std::vector<int>& ring) {
+  if (first < 0) return false;
+  int edge = first;
+  do {
+    const auto t = static_cast<std::size_t>(edge / 3);
+    const auto k = static_cast<std::size_t>(edge % 3);
+    ring.push_back(surface.triangles[t][(k + 1) % 3]);
+    // The half-edge into the vertex from the triangle's third corner, reversed: the next neighbour.
+    edge = surface.opposite[3 * t + (k + 2) % 3];
+    if (edge < 0 || ring.size() > surface.triangles.size()) return false;
+  } while (edge != first);
+  return true;
+}
+
 /// Largest |v| over the chart cell's vertices.
 double chart_radius(const ChartCell& cell) {
   double r2 = 0;
@@ -648,8 +665,9 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
     // From the previous hull; where a reflex edge stays stuck there (blub and brain_48k, once per
     // solve), from scratch by insertion, which does not get stuck; Qhull last.
     const bool from_previous = !start.triangles.empty();
-    std::optional<Hull3> grown = convex_hull_3d_by_flips(q, std::move(start), stop_at_empty_cell);
-    if (!grown && from_previous) grown = convex_hull_3d_by_flips(q, {}, stop_at_empty_cell);
+    // The cells come from the surface, so the hull's vertex adjacency is not needed.
+    std::optional<Hull3> grown = convex_hull_3d_by_flips(q, std::move(start), stop_at_empty_cell, false);
+    if (!grown && from_previous) grown = convex_hull_3d_by_flips(q, {}, stop_at_empty_cell, false);
     if (grown) {
       hull = std::move(*grown);
     } else {
@@ -659,20 +677,32 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
         return diagram;  // degenerate: all cells empty, so the line search rejects this step
       }
     }
-    {
+    // The surface goes back to the cache once the cells are built (they walk it).
+    auto keep_surface = [&] {
       const std::lock_guard lock(hull_cache_->mutex);
       hull_cache_->surface = std::move(hull.surface);
-    }
-    if (hull.stopped_at_inside) return diagram;        // an empty cell: the caller rejects these weights
-    if (!(hull.max_facet_offset < 0)) return diagram;  // hemisphere condition violated
+    };
+    // An empty cell (the caller rejects these weights), or the hemisphere condition violated.
     // A point inside the hull is an empty cell: a caller that rejects those needs no cells at all.
-    if (stop_at_empty_cell && std::find(hull.is_vertex.begin(), hull.is_vertex.end(), 0) != hull.is_vertex.end())
+    if (hull.stopped_at_inside || !(hull.max_facet_offset < 0) ||
+        (stop_at_empty_cell && std::find(hull.is_vertex.begin(), hull.is_vertex.end(), 0) != hull.is_vertex.end())) {
+      keep_surface();
       return diagram;
+    }
     const double m = -hull.max_facet_offset;
     const auto count = static_cast<std::ptrdiff_t>(n);
+    const auto& triangles = hull.surface.triangles;
+    // One half-edge out of each hull vertex (3t + k: corner k of triangle t is the vertex).
+    std::vector<int> outgoing(n, -1);
+    for (std::size_t t = 0; t < triangles.size(); ++t)
+      for (std::size_t k = 0; k < 3; ++k)
+        outgoing[static_cast<std::size_t>(triangles[t][k])] = static_cast<int>(3 * t + k);
 #pragma omp parallel
     {
       ChartCell cell;
+      std::vector<int> ring;  // the hull neighbours of a vertex, counter-clockwise seen from outside
+      std::vector<Vec2> normals;
+      std::vector<double> offsets;
 #pragma omp for schedule(dynamic, 256)
       for (std::ptrdiff_t s = 0; s < count; ++s) {
         const auto i = static_cast<std::size_t>(s);
@@ -681,16 +711,30 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
         const double scale = std::exp(h[i]) / m;
         const double half = 1.1 * std::sqrt(std::max(scale * scale - 1, 0.0)) + 1e-9;
         const Eigen::Matrix3d frame = frame_at(p[i]);
-        set_chart_square(cell, half);
-        double radius = chart_radius(cell);
-        for (int j : hull.edges.of(i)) {
-          clip_with(cell, radius, frame, i, j);
-          if (cell.empty()) break;
+        // The cell straight from the hull: its edges are the bisectors with the hull neighbours,
+        // in their order around the vertex (clipping a square by the same bisectors, as below,
+        // gives the same cell at several times the cost).
+        ring.clear(), normals.clear(), offsets.clear();
+        if (!hull_neighbours(hull.surface, outgoing[i], ring)) continue;  // never for a closed hull
+        for (int j : ring) {
+          const HalfPlane line =
+              bisector(frame, p[i], h[i], p[static_cast<std::size_t>(j)], h[static_cast<std::size_t>(j)]);
+          normals.push_back(line.normal), offsets.push_back(line.offset);
         }
-        if (has_boundary_edge(cell)) continue;  // cannot happen when 0 is inside the hull
+        if (!cell_from_ordered_lines(cell, normals, offsets, ring, half)) {
+          // A corner too close to call (near-degenerate sites): clip a square by the neighbours.
+          set_chart_square(cell, half);
+          double radius = chart_radius(cell);
+          for (int j : ring) {
+            clip_with(cell, radius, frame, i, j);
+            if (cell.empty()) break;
+          }
+          if (has_boundary_edge(cell)) continue;  // cannot happen when 0 is inside the hull
+        }
         diagram.cells[i] = to_sphere(cell, frame);
       }
     }
+    keep_surface();
     return diagram;
   }
 
