@@ -506,8 +506,63 @@ namespace {
 /// Cell i = the domain clipped by its Laguerre neighbours, in coordinates u = v − c_i (see below).
 /// The clipping runs in a per-thread buffer; the cell gets exactly-sized copies (the buffers'
 /// capacity, grown by every cell the thread clipped, would otherwise stay with the cells).
+/// A number that increases with the angle of `d` ≠ 0 from the x axis, counter-clockwise over
+/// [0, 2π) → [0, 4) (cheaper than atan2, for sorting).
+double pseudo_angle(const Vec2& d) {
+  const double p = d.x() / (std::abs(d.x()) + std::abs(d.y()));
+  return d.y() < 0 ? 3 + p : 1 - p;
+}
+
+/// Cell i straight from its Laguerre neighbours when it lies inside the domain: edge j has the
+/// outward normal c_j − c_i, so the edges in counter-clockwise order are the neighbours by the
+/// angle of c_j − c_i, and each vertex is where consecutive ones cross (cell_from_ordered_lines).
+/// False for a cell that reaches the domain's boundary, and where cell_from_ordered_lines
+/// declines: the caller clips.
+bool cell_inside_domain(ChartCell& cell, std::size_t i, std::span<const int> neighbors, std::span<const Vec2> centers,
+                        std::span<const double> power_weight, const std::vector<Vec2>& boundary) {
+  struct Line {
+    double angle;
+    Vec2 normal;
+    double offset;
+    int label;
+  };
+  thread_local std::vector<Line> lines;
+  thread_local std::vector<Vec2> normals;
+  thread_local std::vector<double> offsets;
+  thread_local std::vector<int> labels;
+  const Vec2 center = centers[i];
+  lines.clear();
+  for (int j : neighbors) {
+    const Vec2 d = centers[static_cast<std::size_t>(j)] - center;
+    if (!(d.x() != 0 || d.y() != 0)) return false;  // equal centres: one of them is hidden
+    lines.push_back(
+        {pseudo_angle(d), -2 * d, d.squaredNorm() + power_weight[i] - power_weight[static_cast<std::size_t>(j)], j});
+  }
+  // insertion sort: a few lines, and stable, so equal angles keep a fixed order (and are declined)
+  for (std::size_t k = 1; k < lines.size(); ++k)
+    for (std::size_t m = k; m > 0 && lines[m - 1].angle > lines[m].angle; --m) std::swap(lines[m - 1], lines[m]);
+  normals.clear(), offsets.clear(), labels.clear();
+  for (const Line& line : lines)
+    normals.push_back(line.normal), offsets.push_back(line.offset), labels.push_back(line.label);
+  double bound = 0;  // the domain's extent around the centre: a cell inside it is within
+  for (const Vec2& corner : boundary) bound = std::max(bound, (corner - center).cwiseAbs().maxCoeff());
+  thread_local ChartCell work;
+  if (!cell_from_ordered_lines(work, normals, offsets, labels, bound)) return false;
+  // Inside the domain when every vertex is on the inner side of every domain edge.
+  for (const Vec2& v : work.vertices)
+    for (std::size_t k = 0; k < boundary.size(); ++k) {
+      const Vec2 a = boundary[k] - center, b = boundary[k + 1 == boundary.size() ? 0 : k + 1] - center;
+      if ((b - a).x() * (v - a).y() - (b - a).y() * (v - a).x() <= 0) return false;
+    }
+  cell.vertices.resize(work.vertices.size());
+  for (std::size_t k = 0; k < work.vertices.size(); ++k) cell.vertices[k] = work.vertices[k] + center;
+  cell.neighbors.assign(work.neighbors.begin(), work.neighbors.end());
+  return true;
+}
+
 void clip_cell(ChartCell& cell, std::size_t i, std::span<const int> neighbors, std::span<const Vec2> centers,
                std::span<const double> power_weight, const std::vector<Vec2>& boundary) {
+  if (cell_inside_domain(cell, i, neighbors, centers, power_weight, boundary)) return;
   const Vec2 center = centers[i];
   thread_local ChartCell work;
   work.vertices.resize(boundary.size());
