@@ -585,28 +585,36 @@ void clip_cell(ChartCell& cell, std::size_t i, std::span<const int> neighbors, s
   cell.neighbors.assign(work.neighbors.begin(), work.neighbors.end());
 }
 
+/// The cells of the power diagram of `centers` and `power_weight` over `domain`, with the
+/// neighbours from the regular triangulation of `topology_centers` and `topology_weights` (the
+/// same triangulation, by other centres: see build_chart_diagram_with_fixed_centers; empty: the
+/// cells' own), kept in `warm_start` when given.
 std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> centers,
                                                       std::span<const double> power_weight, const ConvexPolygon& domain,
                                                       bool stop_at_empty_cell, std::size_t own_cells,
-                                                      PowerDiagramWarmStart* warm_start) {
+                                                      PowerDiagramWarmStart* warm_start,
+                                                      std::span<const Vec2> topology_centers = {},
+                                                      std::span<const double> topology_weights = {}) {
   const std::size_t n = centers.size();
+  if (topology_centers.empty()) topology_centers = centers, topology_weights = power_weight;
   // From the last triangulation when it has the same centres (taken, not copied: a concurrent
   // build finds none and starts from scratch), else from scratch, and where flips cannot finish.
   std::optional<detail::RegularTriangulation> flipped;
   std::uint64_t fingerprint = 0;
   detail::SiteTriangulation surface;
   if (warm_start) {
-    fingerprint = detail::centers_fingerprint(centers);
+    fingerprint = detail::centers_fingerprint(topology_centers);
     {
       const std::lock_guard lock(warm_start->mutex);
       if (warm_start->count == n && warm_start->fingerprint == fingerprint) surface = std::move(warm_start->surface);
     }
     // More flips than sites: a start that far off is not worth finishing.
-    if (!surface.triangles.empty()) flipped = detail::regular_triangulation_by_flips(centers, power_weight, surface, n);
+    if (!surface.triangles.empty())
+      flipped = detail::regular_triangulation_by_flips(topology_centers, topology_weights, surface, n);
   }
-  auto triangulation =
-      flipped ? std::move(*flipped)
-              : detail::regular_triangulation(centers, power_weight, stop_at_empty_cell, warm_start != nullptr);
+  auto triangulation = flipped ? std::move(*flipped)
+                               : detail::regular_triangulation(topology_centers, topology_weights, stop_at_empty_cell,
+                                                               warm_start != nullptr);
   if (warm_start && !flipped && !triangulation.triangles.empty())
     surface = detail::SiteTriangulation{std::move(triangulation.triangles), {}};
   if (warm_start && !surface.triangles.empty()) {
@@ -725,6 +733,29 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
     }
   }
   return cells;
+}
+
+std::vector<ChartCell> build_chart_diagram_with_fixed_centers(std::span<const Vec3> dual, const ConvexPolygon& domain,
+                                                              std::span<const Vec2> fixed_centers,
+                                                              std::span<const double> fixed_power_weights,
+                                                              bool stop_at_empty_cell,
+                                                              PowerDiagramWarmStart* warm_start) {
+  if (fixed_centers.size() != dual.size() || fixed_power_weights.size() != dual.size())
+    throw InputError("fixed_centers", "there must be one fixed centre and one power weight per function");
+#ifdef SDOT_HAVE_CGAL
+  std::vector<Vec2> centers(dual.size());
+  std::vector<double> power_weight(dual.size());
+  for (std::size_t i = 0; i < dual.size(); ++i) {
+    centers[i] = dual[i].head<2>();
+    power_weight[i] = 2 * dual[i].z() + centers[i].squaredNorm();
+  }
+  return power_diagram_by_triangulation(centers, power_weight, domain, stop_at_empty_cell,
+                                        std::numeric_limits<std::size_t>::max(), warm_start, fixed_centers,
+                                        fixed_power_weights);
+#else
+  (void)warm_start;  // only triangulations are kept
+  return build_chart_diagram(dual, domain, fixed_centers, stop_at_empty_cell, PowerDiagramMethod::kd_tree);
+#endif
 }
 
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,

@@ -138,6 +138,20 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
                                            std::size_t own_cells = std::numeric_limits<std::size_t>::max(),
                                            PowerDiagramWarmStart* warm_start = nullptr);
 
+/// The cells of build_chart_diagram (method `regular_triangulation`) with the neighbours taken
+/// from the regular triangulation of `fixed_centers` with `fixed_power_weights`, which must be
+/// the same triangulation as that of the envelope's own power centres a_i.xy; the caller's
+/// centres do not move from one build to the next where those do, so `warm_start` (optional)
+/// reaches the next triangulation by flips, as for build_power_diagram. For H²: the Klein points
+/// of the sites with power weights |κ_i|² + e^{h_i}/y_{i,3} (docs/hyperbolic.md). In a build
+/// without CGAL, build_chart_diagram's kd-tree method with the fixed centres as anchors.
+/// InputError when the lists' sizes differ from `dual`'s.
+std::vector<ChartCell> build_chart_diagram_with_fixed_centers(std::span<const Vec3> dual, const ConvexPolygon& domain,
+                                                              std::span<const Vec2> fixed_centers,
+                                                              std::span<const double> fixed_power_weights,
+                                                              bool stop_at_empty_cell = false,
+                                                              PowerDiagramWarmStart* warm_start = nullptr);
+
 /// Same, with the neighbour candidates already known (e.g. from a 3-D hull).
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,
                                            const Adjacency& candidates);

@@ -322,18 +322,28 @@ Diagram<Hyperbolic::Point> Hyperbolic::build_diagram(std::span<const Point> site
   // with a' = e^{−h} J Λ⁻¹ y. Adding 1 to every a'_z leaves the envelope unchanged and makes the
   // offsets small: a'_z + 1 = −(expm1(−h) y₃' + |y'₁₂|² / (1 + y₃')), computed without cancellation,
   // so the bisectors in the chart carry less rounding (math.md §5, "H² numerics").
+  // The neighbours: minimising e^{−h_i}⟨(k, 1), y_i⟩ over i picks the faces of the hull of the
+  // points P_i = e^{−h_i} y₃ (κ_i, 1) that face the origin, κ_i the Klein point of site i. Those
+  // are the upper hull of the lifted points (κ_i, e^{h_i}/y₃): the regular triangulation of the
+  // Klein points with power weights |κ_i|² + e^{h_i}/y₃ (docs/hyperbolic.md). Its centres do not
+  // move with the weights, so each build starts from the last one's triangulation by flips.
   std::vector<Vec3> dual(sites.size());
-  std::vector<Eigen::Vector2d> anchors(sites.size());  // the sites' Klein points: where their cells are
+  std::vector<Eigen::Vector2d> klein(sites.size());  // the sites' Klein points: where their cells are
+  std::vector<double> lifted(sites.size());
   for (std::size_t i = 0; i < sites.size(); ++i) {
     const double h = weights[static_cast<Eigen::Index>(i)];
     const Point y = inverse_boost_ * sites[i];
     const double horizontal = y.head<2>().squaredNorm();
     const double height = std::sqrt(1 + horizontal);  // y₃' re-projected onto the hyperboloid
     dual[i] = Vec3(std::exp(-h) * y.x(), std::exp(-h) * y.y(), -(std::expm1(-h) * height + horizontal / (1 + height)));
-    anchors[i] = y.head<2>() / height;
+    klein[i] = y.head<2>() / height;
+    lifted[i] = klein[i].squaredNorm() + std::exp(h) / height;
   }
   Diagram<Point> diagram;
-  const auto cells = build_chart_diagram(dual, chart_domain_, anchors, stop_at_empty_cell);
+  const auto cells = has_regular_triangulation()
+                         ? build_chart_diagram_with_fixed_centers(dual, chart_domain_, klein, lifted,
+                                                                  stop_at_empty_cell, warm_start_.get())
+                         : build_chart_diagram(dual, chart_domain_, klein, stop_at_empty_cell);
   diagram.cells.resize(cells.size());
 #pragma omp parallel for schedule(dynamic, 256)
   for (std::size_t i = 0; i < cells.size(); ++i) {

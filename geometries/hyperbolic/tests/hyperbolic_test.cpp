@@ -244,6 +244,60 @@ TEST(Hyperbolic, SitesFarOutsideTheDomain) {
     EXPECT_TRUE(g.chart_domain().contains(Hyperbolic::to_klein(Hyperbolic::lorentz_inverse(g.boost()) * c), 1e-12));
 }
 
+TEST(Hyperbolic, CellsAreLaguerreCellsThroughWarmStartedBuilds) {
+  // One object keeps its last triangulation (of the sites' Klein points) for the next weights:
+  // every build must give the cells of a build from scratch (a fresh object), and those must be
+  // the Laguerre cells: at each vertex the cell's site has the lowest cost − weight of all sites
+  // (brute force), tied with the neighbour across each edge.
+  const auto g = Hyperbolic::regular_polygon(8, 1.5);
+  std::mt19937_64 random(9);
+  std::vector<Point> sites = random_sites_in(g, 1200, random);
+  std::uniform_real_distribution<double> radius(0, 5), angle(0, 2 * std::numbers::pi);
+  for (int k = 0; k < 100; ++k) sites.push_back(Hyperbolic::polar(radius(random), angle(random)));  // some far out
+  const auto n = static_cast<Eigen::Index>(sites.size());
+  std::normal_distribution<double> normal(0, 1);
+  std::vector<Eigen::VectorXd> steps{g.default_weights(sites)};
+  for (double sigma : {1e-4, 1e-4, 1e-6}) {  // cells are about 0.05 across: ln cosh d ≈ d²/2 ~ 1e-3
+    Eigen::VectorXd next = steps.back();
+    for (auto& w : next) w += sigma * normal(random);
+    steps.push_back(next);
+  }
+  steps.push_back(steps.back());
+  steps.back()[17] -= 0.05;  // site 17 hidden: an empty cell
+  steps.push_back(steps[2]);
+  for (std::size_t step = 0; step < steps.size(); ++step) {
+    SCOPED_TRACE("step " + std::to_string(step));
+    const Eigen::VectorXd& w = steps[step];
+    const auto warm = g.build_diagram(sites, w);
+    const auto cold = Hyperbolic::regular_polygon(8, 1.5).build_diagram(sites, w);
+    std::size_t empty = 0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const auto& cell = warm.cells[static_cast<std::size_t>(i)];
+      ASSERT_EQ(cell.vertices, cold.cells[static_cast<std::size_t>(i)].vertices) << "cell " << i;
+      ASSERT_EQ(cell.neighbors, cold.cells[static_cast<std::size_t>(i)].neighbors) << "cell " << i;
+      empty += cell.empty();
+      for (std::size_t k = 0; k < cell.size(); ++k) {
+        const Point& x = cell.vertices[k];
+        const double own = Hyperbolic::cost(x, sites[static_cast<std::size_t>(i)]) - w[i];
+        double lowest = own;
+        for (Eigen::Index j = 0; j < n; ++j)
+          lowest = std::min(lowest, Hyperbolic::cost(x, sites[static_cast<std::size_t>(j)]) - w[j]);
+        ASSERT_LT(own - lowest, 1e-9) << "cell " << i << ", vertex " << k;
+        for (const std::size_t end : {k, (k + 1) % cell.size()}) {
+          const int j = cell.neighbors[k];
+          if (is_boundary(j)) continue;
+          const Point& y = cell.vertices[end];
+          EXPECT_NEAR(Hyperbolic::cost(y, sites[static_cast<std::size_t>(i)]) - w[i],
+                      Hyperbolic::cost(y, sites[static_cast<std::size_t>(j)]) - w[j], 1e-9)
+              << "cell " << i << ", edge " << k;
+        }
+      }
+    }
+    EXPECT_LT(empty, 100u);  // at most the sites far out, and site 17 at step 4
+    EXPECT_EQ(warm.cells[17].empty(), step == 4);
+  }
+}
+
 TEST(Hyperbolic, DefaultWeightsGiveNonEmptyCells) {
   const auto g = Hyperbolic::regular_polygon(5, 0.8, Hyperbolic::polar(1, 2));
   std::mt19937_64 random(6);

@@ -19,6 +19,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <numbers>
 #include <span>
 #include <string>
@@ -182,6 +183,9 @@ class Hyperbolic {
   Eigen::Matrix3d boost_ = Eigen::Matrix3d::Identity();
   Eigen::Matrix3d inverse_boost_ = Eigen::Matrix3d::Identity();
   ConvexPolygon chart_domain_;
+  // The last diagram's triangulation (of the sites' Klein points, which the weights do not move),
+  // shared by copies; the next build reaches its own from it by flips.
+  std::shared_ptr<PowerDiagramWarmStart> warm_start_ = make_power_diagram_warm_start();
 };
 
 }  // namespace sdot
