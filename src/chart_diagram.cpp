@@ -503,9 +503,6 @@ bool has_regular_triangulation() {
 #ifdef SDOT_HAVE_CGAL
 namespace {
 
-/// Cell i = the domain clipped by its Laguerre neighbours, in coordinates u = v − c_i (see below).
-/// The clipping runs in a per-thread buffer; the cell gets exactly-sized copies (the buffers'
-/// capacity, grown by every cell the thread clipped, would otherwise stay with the cells).
 /// A number that increases with the angle of `d` ≠ 0 from the x axis, counter-clockwise over
 /// [0, 2π) → [0, 4) (cheaper than atan2, for sorting).
 double pseudo_angle(const Vec2& d) {
@@ -560,6 +557,10 @@ bool cell_inside_domain(ChartCell& cell, std::size_t i, std::span<const int> nei
   return true;
 }
 
+/// Cell i: read off its neighbours when it lies inside the domain (cell_inside_domain), else the
+/// domain clipped by its Laguerre neighbours, in coordinates u = v − c_i (see below).
+/// The clipping runs in a per-thread buffer; the cell gets exactly-sized copies (the buffers'
+/// capacity, grown by every cell the thread clipped, would otherwise stay with the cells).
 void clip_cell(ChartCell& cell, std::size_t i, std::span<const int> neighbors, std::span<const Vec2> centers,
                std::span<const double> power_weight, const std::vector<Vec2>& boundary) {
   if (cell_inside_domain(cell, i, neighbors, centers, power_weight, boundary)) return;
