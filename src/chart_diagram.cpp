@@ -736,21 +736,33 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
   return cells;
 }
 
+namespace {
+/// The affine functions f_i(v) = a_i·(v, 1) as power-diagram sites: maximising f_i is minimising
+/// pow_i(v) = |v|² − 2 f_i(v) = |v − c_i|² − w_i, with c_i = a_i.xy and w_i = 2 a_i.z + |c_i|².
+struct PowerForm {
+  std::vector<Vec2> centers;
+  std::vector<double> weights;
+  explicit PowerForm(std::span<const Vec3> dual) : centers(dual.size()), weights(dual.size()) {
+    for (std::size_t i = 0; i < dual.size(); ++i) {
+      centers[i] = dual[i].head<2>();
+      weights[i] = 2 * dual[i].z() + centers[i].squaredNorm();
+    }
+  }
+};
+}  // namespace
+
 std::vector<ChartCell> build_chart_diagram_with_fixed_centers(std::span<const Vec3> dual, const ConvexPolygon& domain,
                                                               std::span<const Vec2> fixed_centers,
                                                               std::span<const double> fixed_power_weights,
                                                               bool stop_at_empty_cell,
                                                               PowerDiagramWarmStart* warm_start) {
   if (fixed_centers.size() != dual.size() || fixed_power_weights.size() != dual.size())
-    throw InputError("fixed_centers", "there must be one fixed centre and one power weight per function");
+    throw InputError("fixed_centers", "there are " + std::to_string(fixed_centers.size()) + " fixed centres and " +
+                                          std::to_string(fixed_power_weights.size()) + " power weights for " +
+                                          std::to_string(dual.size()) + " functions");
 #ifdef SDOT_HAVE_CGAL
-  std::vector<Vec2> centers(dual.size());
-  std::vector<double> power_weight(dual.size());
-  for (std::size_t i = 0; i < dual.size(); ++i) {
-    centers[i] = dual[i].head<2>();
-    power_weight[i] = 2 * dual[i].z() + centers[i].squaredNorm();
-  }
-  return power_diagram_by_triangulation(centers, power_weight, domain, stop_at_empty_cell,
+  const PowerForm power(dual);
+  return power_diagram_by_triangulation(power.centers, power.weights, domain, stop_at_empty_cell,
                                         std::numeric_limits<std::size_t>::max(), warm_start, fixed_centers,
                                         fixed_power_weights);
 #else
@@ -762,15 +774,8 @@ std::vector<ChartCell> build_chart_diagram_with_fixed_centers(std::span<const Ve
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,
                                            std::span<const Vec2> anchors, bool stop_at_empty_cell,
                                            PowerDiagramMethod method) {
-  // Maximising f_i is minimising pow_i(v) = |v|² − 2 f_i(v) = |v − c_i|² − w_i, with
-  // c_i = a_i.xy and w_i = 2 a_i.z + |c_i|².
-  std::vector<Vec2> centers(dual.size());
-  std::vector<double> power_weight(dual.size());
-  for (std::size_t i = 0; i < dual.size(); ++i) {
-    centers[i] = dual[i].head<2>();
-    power_weight[i] = 2 * dual[i].z() + centers[i].squaredNorm();
-  }
-  return build_power_diagram(centers, power_weight, domain, anchors, stop_at_empty_cell, method);
+  const PowerForm power(dual);
+  return build_power_diagram(power.centers, power.weights, domain, anchors, stop_at_empty_cell, method);
 }
 
 Hull3 convex_hull_3d(std::span<const Vec3> points, bool with_surface) {

@@ -631,6 +631,21 @@ TEST(ChartDiagram, CellFromOrderedLinesIsTheClippedCell) {
   EXPECT_GT(declined, 100);
 }
 
+TEST(ChartDiagram, FixedCentresMustMatchTheFunctions) {
+  const std::vector<Vec3> dual{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  const std::vector<Vec2> centers{{0, 0}, {1, 0}};
+  const std::vector<double> weights{0, 0, 0};
+  const auto square = ConvexPolygon::rectangle(-1, -1, 2, 2);
+  try {
+    (void)build_chart_diagram_with_fixed_centers(dual, square, centers, weights);
+    FAIL() << "no error";
+  } catch (const InputError& error) {
+    EXPECT_NE(std::string(error.what()).find("fixed_centers"), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("2 fixed centres and 3 power weights for 3 functions"), std::string::npos)
+        << error.what();
+  }
+}
+
 TEST(ChartDiagram, CellFromOrderedLinesDeclinesWhatItCannotCertify) {
   // the unit square's four sides, counter-clockwise: bottom, right, top, left
   const std::vector<Vec2> normals{{0, 1}, {-1, 0}, {0, -1}, {1, 0}};
