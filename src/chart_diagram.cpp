@@ -650,12 +650,23 @@ std::shared_ptr<PowerDiagramWarmStart> make_power_diagram_warm_start() {
   return std::make_shared<PowerDiagramWarmStart>();
 }
 
+namespace {
+/// True when every centre and weight is finite. Weights beyond double range (e^h overflowing in
+/// a line search's trial step, or a user's start) have no diagram: the builders then return
+/// empty cells, which a line search rejects, instead of feeding infinities to the predicates.
+bool all_finite(std::span<const Vec2> centers, std::span<const double> weights) {
+  return std::all_of(centers.begin(), centers.end(), [](const Vec2& c) { return c.allFinite(); }) &&
+         std::all_of(weights.begin(), weights.end(), [](double w) { return std::isfinite(w); });
+}
+}  // namespace
+
 std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weight,
                                            const ConvexPolygon& domain, std::span<const Vec2> anchors,
                                            bool stop_at_empty_cell, PowerDiagramMethod method, std::size_t own_cells,
                                            PowerDiagramWarmStart* warm_start) {
   if (method == PowerDiagramMethod::regular_triangulation && !has_regular_triangulation())
     throw InputError("method", "this build of sdot has no regular triangulation (configure with SDOT_WITH_CGAL=ON)");
+  if (!all_finite(centers, power_weight)) return std::vector<ChartCell>(centers.size());
 #ifdef SDOT_HAVE_CGAL
   if (method != PowerDiagramMethod::kd_tree)
     return power_diagram_by_triangulation(centers, power_weight, domain, stop_at_empty_cell, own_cells, warm_start);
@@ -762,6 +773,8 @@ std::vector<ChartCell> build_chart_diagram_with_fixed_centers(std::span<const Ve
                                           std::to_string(dual.size()) + " functions");
 #ifdef SDOT_HAVE_CGAL
   const PowerForm power(dual);
+  if (!all_finite(power.centers, power.weights) || !all_finite(fixed_centers, fixed_power_weights))
+    return std::vector<ChartCell>(dual.size());
   return power_diagram_by_triangulation(power.centers, power.weights, domain, stop_at_empty_cell,
                                         std::numeric_limits<std::size_t>::max(), warm_start, fixed_centers,
                                         fixed_power_weights);

@@ -646,6 +646,38 @@ TEST(ChartDiagram, FixedCentresMustMatchTheFunctions) {
   }
 }
 
+TEST(ChartDiagram, NonFiniteInputsGiveEmptyCells) {
+  // A centre, power weight or fixed centre that overflowed: every cell empty (which a line search
+  // rejects), never an infinity handed to the exact predicates (CGAL aborts on those).
+  const auto square = ConvexPolygon::rectangle(-1, -1, 2, 2);
+  const std::vector<Vec2> centers{{0, 0}, {0.5, 0}, {0, 0.5}, {0.5, 0.5}};
+  const double infinity = std::numeric_limits<double>::infinity();
+  for (const PowerDiagramMethod method : builders())
+    for (const double bad : {infinity, -infinity, std::numeric_limits<double>::quiet_NaN()}) {
+      SCOPED_TRACE(name(method));
+      std::vector<double> weights{0, 0.1, bad, 0};
+      for (const auto& cell : build_power_diagram(centers, weights, square, {}, false, method))
+        EXPECT_TRUE(cell.empty());
+      std::vector<Vec2> far = centers;
+      far[1].y() = bad;
+      const std::vector<double> zero(4, 0.0);
+      for (const auto& cell : build_power_diagram(far, zero, square, {}, false, method)) EXPECT_TRUE(cell.empty());
+    }
+  const std::vector<double> zero(4, 0.0);
+  const auto dual = dual_of(centers, zero);
+  std::vector<double> lifted(4, 0.0);
+  lifted[3] = infinity;
+  for (const auto& cell : build_chart_diagram_with_fixed_centers(dual, square, centers, lifted))
+    EXPECT_TRUE(cell.empty());
+  auto overflowed = dual;
+  overflowed[0].z() = infinity;
+  for (const auto& cell : build_chart_diagram_with_fixed_centers(overflowed, square, centers, zero))
+    EXPECT_TRUE(cell.empty());
+  // The same finite input gives the four quadrants.
+  for (const auto& cell : build_chart_diagram_with_fixed_centers(dual, square, centers, zero))
+    EXPECT_FALSE(cell.empty());
+}
+
 TEST(ChartDiagram, CellFromOrderedLinesDeclinesWhatItCannotCertify) {
   // the unit square's four sides, counter-clockwise: bottom, right, top, left
   const std::vector<Vec2> normals{{0, 1}, {-1, 0}, {0, -1}, {1, 0}};

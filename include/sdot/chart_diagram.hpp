@@ -130,7 +130,8 @@ std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const Con
 /// `warm_start` (optional, from make_power_diagram_warm_start) keeps the regular triangulation
 /// for the next build: when that has the same centres, it starts from it by edge flips (a Newton
 /// step changes the weights only), and from scratch where the flips cannot finish. The cells are
-/// the same either way.
+/// the same either way. A centre or weight that is not finite (an overflowed trial step) has no
+/// diagram: every cell is then empty, which a line search rejects.
 std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::span<const double> power_weights,
                                            const ConvexPolygon& domain, std::span<const Vec2> anchors = {},
                                            bool stop_at_empty_cell = false,
@@ -145,7 +146,8 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
 /// reaches the next triangulation by flips, as for build_power_diagram. For H²: the Klein points
 /// of the sites with power weights |κ_i|² + e^{h_i}/y_{i,3} (docs/hyperbolic.md). In a build
 /// without CGAL, build_chart_diagram's kd-tree method with the fixed centres as anchors.
-/// InputError when the lists' sizes differ from `dual`'s.
+/// InputError when the lists' sizes differ from `dual`'s; every cell empty when a value is not
+/// finite, as for build_power_diagram.
 std::vector<ChartCell> build_chart_diagram_with_fixed_centers(std::span<const Vec3> dual, const ConvexPolygon& domain,
                                                               std::span<const Vec2> fixed_centers,
                                                               std::span<const double> fixed_power_weights,

@@ -138,12 +138,21 @@ Hyperbolic::Point Hyperbolic::from_poincare(const Eigen::Vector2d& p, const std:
   return Point(2 * p.x(), 2 * p.y(), 1 + r2) / d;
 }
 
-Hyperbolic::Point Hyperbolic::from_hyperboloid(const Point& x, const std::string& field) {
+namespace {
+/// InputError naming `field` unless x is a finite point of the hyperboloid's upper sheet within
+/// distance 230 of the origin (x3 ≤ 1e100; farther out the chart's squared norms overflow).
+void check_hyperboloid_point(const Hyperbolic::Point& x, const std::string& field) {
   if (!x.allFinite()) throw InputError(field, "coordinate is not finite");
+  if (!(x.z() <= 1e100)) throw InputError(field, "is too far from the origin (x3 > 1e100)");
   const double q = mink(x, x);
   if (!(x.z() > 0) || !(std::abs(q + 1) <= 1e-9 * x.squaredNorm()))
     throw InputError(field, "point is not on the hyperboloid's upper sheet (<x,x>_M = " + std::to_string(q) +
                                 ", x3 = " + std::to_string(x.z()) + "; need <x,x>_M = -1 and x3 > 0)");
+}
+}  // namespace
+
+Hyperbolic::Point Hyperbolic::from_hyperboloid(const Point& x, const std::string& field) {
+  check_hyperboloid_point(x, field);
   Point p = x;
   p.z() = std::sqrt(1 + x.head<2>().squaredNorm());  // exact re-projection
   return p;
@@ -253,13 +262,7 @@ double Hyperbolic::cost(const Point& x, const Point& y) {
 
 void Hyperbolic::validate_sites(std::span<const Point> sites) const {
   for (std::size_t i = 0; i < sites.size(); ++i) {
-    const Point& x = sites[i];
-    const std::string field = indexed("sites", i);
-    if (!x.allFinite()) throw InputError(field, "coordinate is not finite");
-    const double q = mink(x, x);
-    if (!(x.z() > 0) || !(std::abs(q + 1) <= 1e-9 * x.squaredNorm()))
-      throw InputError(field, "point is not on the hyperboloid's upper sheet (<x,x>_M = " + std::to_string(q) +
-                                  ", x3 = " + std::to_string(x.z()) + "; need <x,x>_M = -1 and x3 > 0)");
+    check_hyperboloid_point(sites[i], indexed("sites", i));
   }
   std::vector<std::size_t> order(sites.size());
   std::iota(order.begin(), order.end(), 0);

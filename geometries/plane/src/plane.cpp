@@ -33,8 +33,13 @@ void Plane::set_chart() {
 }
 
 void Plane::validate_sites(std::span<const Point> sites) const {
-  for (std::size_t i = 0; i < sites.size(); ++i)
+  // Farther than this, squared distances to the domain overflow, and the cells keep no digit.
+  constexpr double max_radii = 1e100;
+  for (std::size_t i = 0; i < sites.size(); ++i) {
     if (!sites[i].allFinite()) throw InputError(indexed("sites", i), "coordinate is not finite");
+    if (!((sites[i] - chart_origin_).cwiseAbs().maxCoeff() <= max_radii * chart_scale_))
+      throw InputError(indexed("sites", i), "is more than 1e100 domain radii from the domain's centre");
+  }
   std::vector<std::size_t> order(sites.size());
   std::iota(order.begin(), order.end(), 0);
   auto less = [&](std::size_t a, std::size_t b) {

@@ -130,8 +130,17 @@ std::vector<Torus::Point> Torus::image_shifts() const {
 }
 
 void Torus::validate_sites(std::span<const Point> sites) const {
-  for (std::size_t i = 0; i < sites.size(); ++i)
+  // Along an axis that does not wrap, farther than this from the box, squared distances overflow.
+  constexpr double max_radii = 1e100;
+  const double radius = box_.diagonal().norm() / 2;
+  for (std::size_t i = 0; i < sites.size(); ++i) {
     if (!sites[i].allFinite()) throw InputError(indexed("sites", i), "coordinate is not finite");
+    for (int d = 0; d < 2; ++d)
+      if (!periodic_[static_cast<std::size_t>(d)] && !(std::abs(sites[i][d] - box_.center()[d]) <= max_radii * radius))
+        throw InputError(indexed("sites", i),
+                         "is more than 1e100 box radii from the box along the axis that does "
+                         "not wrap");
+  }
   // Two sites are the same point of the torus when their wrapped coordinates agree: within
   // `tolerance` (circularly) along a periodic axis, where wrapping rounds (0.3 + 1 − 1 is not
   // 0.3), exactly along another. Sites are bucketed on a grid of `bucket` (64 tolerances) along

@@ -535,6 +535,34 @@ sdot::Result<typename G::Point> sdot::detail::solve_in_order(
     weights = geometry.default_weights(sites);  // the Voronoi diagram has empty cells
     current = evaluate(geometry, density, sites, weights, true, &summary.timings, false);
   }
+  // The lowest caller's index among the empty cells of `current`, or −1.
+  auto first_empty_cell = [&] {
+    Eigen::Index first = -1;
+    for (Eigen::Index i = 0; i < n; ++i)
+      if (current.diagram.cells[static_cast<std::size_t>(i)].empty() &&
+          (first < 0 || original[static_cast<std::size_t>(i)] < original[static_cast<std::size_t>(first)]))
+        first = i;
+    return first;
+  };
+  auto empty_start_error = [&](Eigen::Index i) {
+    return InputError(indexed("weights", static_cast<std::size_t>(original[static_cast<std::size_t>(i)])),
+                      "the initial weights leave the cell of site " + site_name(i) +
+                          " empty; the damped Newton method needs every cell non-empty at the start");
+  };
+  // Before the source mass, which is summed over the cells: with every cell empty it would blame
+  // the density. Every cell empty means no diagram at all: the builders' bisectors overflow or
+  // keep no digit.
+  if (!partial && std::all_of(current.diagram.cells.begin(), current.diagram.cells.end(),
+                              [](const auto& cell) { return cell.empty(); })) {
+    if (user_weights)
+      throw InputError("weights", "the initial weights, from " + detail::format_number(weights.minCoeff()) + " to " +
+                                      detail::format_number(weights.maxCoeff()) +
+                                      " after centring, give no diagram in double precision");
+    throw InputError("sites", "the default weights give no diagram of these sites in double precision");
+  }
+  if (user_weights && !partial) {
+    if (const Eigen::Index i = first_empty_cell(); i >= 0) throw empty_start_error(i);
+  }
   if (partial && user_weights) {
     summary.source_mass = evaluate(geometry, density, sites, weights, false, nullptr, false).masses.sum();
   } else {
@@ -561,11 +589,7 @@ sdot::Result<typename G::Point> sdot::detail::solve_in_order(
     targets *= summary.mass_scale;
   }
 
-  Eigen::Index first_empty = -1;  // the empty cell of the lowest caller's index
-  for (Eigen::Index i = 0; i < n; ++i)
-    if (current.diagram.cells[static_cast<std::size_t>(i)].empty() &&
-        (first_empty < 0 || original[static_cast<std::size_t>(i)] < original[static_cast<std::size_t>(first_empty)]))
-      first_empty = i;
+  const Eigen::Index first_empty = first_empty_cell();
   auto finish = [&](Status status, std::string message) {
     summary.status = status;
     summary.message = std::move(message);
@@ -600,10 +624,7 @@ sdot::Result<typename G::Point> sdot::detail::solve_in_order(
     return result;
   };
   if (first_empty >= 0) {
-    if (user_weights)
-      throw InputError(indexed("weights", static_cast<std::size_t>(original[static_cast<std::size_t>(first_empty)])),
-                       "the initial weights leave the cell of site " + site_name(first_empty) +
-                           " empty; the damped Newton method needs every cell non-empty at the start");
+    if (user_weights) throw empty_start_error(first_empty);
     return finish(Status::line_search_failure,
                   "the cell of site " + site_name(first_empty) + " is empty at the default start");
   }
