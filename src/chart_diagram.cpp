@@ -510,37 +510,36 @@ double pseudo_angle(const Vec2& d) {
   return d.y() < 0 ? 3 + p : 1 - p;
 }
 
-/// Cell i straight from its Laguerre neighbours when it lies inside the domain: edge j has the
-/// outward normal c_j − c_i, so the edges in counter-clockwise order are the neighbours by the
-/// angle of c_j − c_i, and each vertex is where consecutive ones cross (cell_from_ordered_lines).
-/// False for a cell that reaches the domain's boundary, and where cell_from_ordered_lines
-/// declines: the caller clips.
-bool cell_inside_domain(ChartCell& cell, std::size_t i, std::span<const int> neighbors, std::span<const Vec2> centers,
-                        std::span<const double> power_weight, const std::vector<Vec2>& boundary) {
-  struct Line {
+/// Cell i straight from its Laguerre neighbours when it lies inside the domain, in coordinates
+/// u = v − `center`: `line(j)` is the bisector with neighbour j, {u : normal·u + offset ≥ 0} on
+/// the cell's side, so the edges in counter-clockwise order are the neighbours by the angle of
+/// −normal (the outward normal), and each vertex is where consecutive ones cross
+/// (cell_from_ordered_lines). False for a cell that reaches the domain's boundary, and where
+/// cell_from_ordered_lines declines: the caller clips.
+template <class Line>
+bool cell_inside_domain(ChartCell& cell, const Vec2& center, std::span<const int> neighbors, const Line& line,
+                        const std::vector<Vec2>& boundary) {
+  struct Entry {
     double angle;
-    Vec2 normal;
-    double offset;
+    ChartLine line;
     int label;
   };
-  thread_local std::vector<Line> lines;
+  thread_local std::vector<Entry> lines;
   thread_local std::vector<Vec2> normals;
   thread_local std::vector<double> offsets;
   thread_local std::vector<int> labels;
-  const Vec2 center = centers[i];
   lines.clear();
   for (int j : neighbors) {
-    const Vec2 d = centers[static_cast<std::size_t>(j)] - center;
-    if (!(d.x() != 0 || d.y() != 0)) return false;  // equal centres: one of them is hidden
-    lines.push_back(
-        {pseudo_angle(d), -2 * d, d.squaredNorm() + power_weight[i] - power_weight[static_cast<std::size_t>(j)], j});
+    const ChartLine bisector = line(j);
+    if (!(bisector.normal.x() != 0 || bisector.normal.y() != 0)) return false;  // equal centres: one is hidden
+    lines.push_back({pseudo_angle(-bisector.normal), bisector, j});
   }
   // insertion sort: a few lines, and stable, so equal angles keep a fixed order (and are declined)
   for (std::size_t k = 1; k < lines.size(); ++k)
     for (std::size_t m = k; m > 0 && lines[m - 1].angle > lines[m].angle; --m) std::swap(lines[m - 1], lines[m]);
   normals.clear(), offsets.clear(), labels.clear();
-  for (const Line& line : lines)
-    normals.push_back(line.normal), offsets.push_back(line.offset), labels.push_back(line.label);
+  for (const Entry& entry : lines)
+    normals.push_back(entry.line.normal), offsets.push_back(entry.line.offset), labels.push_back(entry.label);
   double bound = 0;  // the domain's extent around the centre: a cell inside it is within
   for (const Vec2& corner : boundary) bound = std::max(bound, (corner - center).cwiseAbs().maxCoeff());
   thread_local ChartCell work;
@@ -557,14 +556,14 @@ bool cell_inside_domain(ChartCell& cell, std::size_t i, std::span<const int> nei
   return true;
 }
 
-/// Cell i: read off its neighbours when it lies inside the domain (cell_inside_domain), else the
-/// domain clipped by its Laguerre neighbours, in coordinates u = v − c_i (see below).
+/// A cell: read off its neighbours when it lies inside the domain (cell_inside_domain), else the
+/// domain clipped by its neighbours' bisectors `line(j)`, in coordinates u = v − `center`.
 /// The clipping runs in a per-thread buffer; the cell gets exactly-sized copies (the buffers'
 /// capacity, grown by every cell the thread clipped, would otherwise stay with the cells).
-void clip_cell(ChartCell& cell, std::size_t i, std::span<const int> neighbors, std::span<const Vec2> centers,
-               std::span<const double> power_weight, const std::vector<Vec2>& boundary) {
-  if (cell_inside_domain(cell, i, neighbors, centers, power_weight, boundary)) return;
-  const Vec2 center = centers[i];
+template <class Line>
+void clip_cell(ChartCell& cell, const Vec2& center, std::span<const int> neighbors, const Line& line,
+               const std::vector<Vec2>& boundary) {
+  if (cell_inside_domain(cell, center, neighbors, line, boundary)) return;
   thread_local ChartCell work;
   work.vertices.resize(boundary.size());
   work.neighbors.resize(boundary.size());
@@ -573,8 +572,10 @@ void clip_cell(ChartCell& cell, std::size_t i, std::span<const int> neighbors, s
     work.neighbors[k] = boundary_label(static_cast<int>(k));
   }
   for (int j : neighbors) {
-    const Vec2 d = centers[static_cast<std::size_t>(j)] - center;
-    clip(work, -2 * d, d.squaredNorm() + power_weight[i] - power_weight[static_cast<std::size_t>(j)], j);
+    const ChartLine bisector = line(j);
+    // A bisector beyond double range (overflowed weights): no cell, which a line search rejects.
+    if (!bisector.normal.allFinite() || !std::isfinite(bisector.offset)) work.vertices.clear();
+    if (!work.vertices.empty()) clip(work, bisector.normal, bisector.offset, j);
     if (work.vertices.empty()) {
       cell.vertices.clear();
       cell.neighbors.clear();
@@ -586,18 +587,29 @@ void clip_cell(ChartCell& cell, std::size_t i, std::span<const int> neighbors, s
   cell.neighbors.assign(work.neighbors.begin(), work.neighbors.end());
 }
 
-/// The cells of the power diagram of `centers` and `power_weight` over `domain`, with the
-/// neighbours from the regular triangulation of `topology_centers` and `topology_weights` (the
-/// same triangulation, by other centres: see build_chart_diagram_with_fixed_centers; empty: the
-/// cells' own), kept in `warm_start` when given.
-std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> centers,
-                                                      std::span<const double> power_weight, const ConvexPolygon& domain,
-                                                      bool stop_at_empty_cell, std::size_t own_cells,
-                                                      PowerDiagramWarmStart* warm_start,
-                                                      std::span<const Vec2> topology_centers = {},
-                                                      std::span<const double> topology_weights = {}) {
-  const std::size_t n = centers.size();
-  if (topology_centers.empty()) topology_centers = centers, topology_weights = power_weight;
+/// The power bisector of sites i and j in coordinates u = v − c_i: −2d·u + |d|² + w_i − w_j ≥ 0
+/// with d = c_j − c_i, without cancellation between large terms.
+struct PowerBisector {
+  std::span<const Vec2> centers;
+  std::span<const double> power_weight;
+  std::size_t i;
+  ChartLine operator()(int j) const {
+    const auto k = static_cast<std::size_t>(j);
+    const Vec2 d = centers[k] - centers[i];
+    return {-2 * d, d.squaredNorm() + power_weight[i] - power_weight[k]};
+  }
+};
+
+/// The cells over `domain` whose neighbours are those of the regular triangulation of
+/// `topology_centers` and `topology_weights`, kept in `warm_start` when given; cell i is built
+/// in coordinates u = v − `cell_center(i)` by the bisectors `cell_lines(i)(j)`.
+template <class CellCenter, class CellLines>
+std::vector<ChartCell> cells_over_triangulation(std::span<const Vec2> topology_centers,
+                                                std::span<const double> topology_weights, const ConvexPolygon& domain,
+                                                bool stop_at_empty_cell, std::size_t own_cells,
+                                                PowerDiagramWarmStart* warm_start, const CellCenter& cell_center,
+                                                const CellLines& cell_lines) {
+  const std::size_t n = topology_centers.size();
   // From the last triangulation when it has the same centres (taken, not copied: a concurrent
   // build finds none and starts from scratch), else from scratch, and where flips cannot finish.
   std::optional<detail::RegularTriangulation> flipped;
@@ -637,10 +649,24 @@ std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> cent
   for (std::size_t position = 0; position < order.size(); ++position) {
     if (stop_at_empty_cell && found_empty.load(std::memory_order_relaxed)) continue;
     const auto i = static_cast<std::size_t>(order[position]);
-    clip_cell(cells[i], i, triangulation.neighbors.of(i), centers, power_weight, domain.vertices());
+    clip_cell(cells[i], cell_center(i), triangulation.neighbors.of(i), cell_lines(i), domain.vertices());
     if (cells[i].vertices.empty() && i < own_cells) found_empty.store(true, std::memory_order_relaxed);
   }
   return cells;
+}
+
+/// The cells of the power diagram of `centers` and `power_weight` over `domain`, each in
+/// coordinates u = v − c_i, from their regular triangulation.
+std::vector<ChartCell> power_diagram_by_triangulation(std::span<const Vec2> centers,
+                                                      std::span<const double> power_weight, const ConvexPolygon& domain,
+                                                      bool stop_at_empty_cell, std::size_t own_cells,
+                                                      PowerDiagramWarmStart* warm_start) {
+  return cells_over_triangulation(
+      centers, power_weight, domain, stop_at_empty_cell, own_cells, warm_start,
+      [&](std::size_t i) { return centers[i]; },
+      [&](std::size_t i) {
+        return PowerBisector{centers, power_weight, i};
+      });
 }
 
 }  // namespace
@@ -762,25 +788,26 @@ struct PowerForm {
 };
 }  // namespace
 
-std::vector<ChartCell> build_chart_diagram_with_fixed_centers(std::span<const Vec3> dual, const ConvexPolygon& domain,
-                                                              std::span<const Vec2> fixed_centers,
+std::vector<ChartCell> build_chart_diagram_with_fixed_centers(std::span<const Vec2> fixed_centers,
                                                               std::span<const double> fixed_power_weights,
-                                                              bool stop_at_empty_cell,
+                                                              const ChartBisector& bisector,
+                                                              const ConvexPolygon& domain, bool stop_at_empty_cell,
                                                               PowerDiagramWarmStart* warm_start) {
-  if (fixed_centers.size() != dual.size() || fixed_power_weights.size() != dual.size())
-    throw InputError("fixed_centers", "there are " + std::to_string(fixed_centers.size()) + " fixed centres and " +
-                                          std::to_string(fixed_power_weights.size()) + " power weights for " +
-                                          std::to_string(dual.size()) + " functions");
+  if (fixed_centers.size() != fixed_power_weights.size())
+    throw InputError("fixed_power_weights", "there are " + std::to_string(fixed_power_weights.size()) +
+                                                " power weights for " + std::to_string(fixed_centers.size()) +
+                                                " fixed centres");
+  if (!has_regular_triangulation())
+    throw InputError("method", "this build of sdot has no regular triangulation (configure with SDOT_WITH_CGAL=ON)");
 #ifdef SDOT_HAVE_CGAL
-  const PowerForm power(dual);
-  if (!all_finite(power.centers, power.weights) || !all_finite(fixed_centers, fixed_power_weights))
-    return std::vector<ChartCell>(dual.size());
-  return power_diagram_by_triangulation(power.centers, power.weights, domain, stop_at_empty_cell,
-                                        std::numeric_limits<std::size_t>::max(), warm_start, fixed_centers,
-                                        fixed_power_weights);
+  if (!all_finite(fixed_centers, fixed_power_weights)) return std::vector<ChartCell>(fixed_centers.size());
+  return cells_over_triangulation(
+      fixed_centers, fixed_power_weights, domain, stop_at_empty_cell, std::numeric_limits<std::size_t>::max(),
+      warm_start, [&](std::size_t i) { return fixed_centers[i]; },
+      [&](std::size_t i) { return [&bisector, i](int j) { return bisector(i, static_cast<std::size_t>(j)); }; });
 #else
-  (void)warm_start;  // only triangulations are kept
-  return build_chart_diagram(dual, domain, fixed_centers, stop_at_empty_cell, PowerDiagramMethod::kd_tree);
+  (void)bisector, (void)domain, (void)stop_at_empty_cell, (void)warm_start;
+  return {};
 #endif
 }
 

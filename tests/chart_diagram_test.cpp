@@ -631,27 +631,78 @@ TEST(ChartDiagram, CellFromOrderedLinesIsTheClippedCell) {
   EXPECT_GT(declined, 100);
 }
 
-TEST(ChartDiagram, FixedCentresMustMatchTheFunctions) {
-  const std::vector<Vec3> dual{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+/// The power form's bisectors for build_chart_diagram_with_fixed_centers: in u = v − c_i,
+/// −2d·u + |d|² + w_i − w_j ≥ 0 with d = c_j − c_i.
+ChartBisector power_bisector(std::span<const Vec2> centers, std::span<const double> weights) {
+  return [centers, weights](std::size_t i, std::size_t j) {
+    const Vec2 d = centers[j] - centers[i];
+    return ChartLine{-2 * d, d.squaredNorm() + weights[i] - weights[j]};
+  };
+}
+
+TEST(ChartDiagram, FixedCentresWithPowerBisectorsGiveThePowerDiagram) {
+  if (!has_regular_triangulation()) GTEST_SKIP() << "built without CGAL";
+  // With the power form's own bisectors, the fixed-centre builder is build_power_diagram's
+  // triangulation path to the last bit, warm-started or not; with shuffled bisectors it is not.
+  std::mt19937_64 random(5);
+  std::uniform_real_distribution<double> uniform(-1.2, 1.2);
+  const ConvexPolygon domain({{-1, -1}, {1, -1}, {1.2, 0.5}, {0, 1}, {-1, 0.6}});
+  const std::size_t n = 3000;
+  std::vector<Vec2> centers(n);
+  for (auto& c : centers) c = Vec2(uniform(random), uniform(random));
+  const auto warm = make_power_diagram_warm_start();
+  for (int round = 0; round < 3; ++round) {
+    std::vector<double> weights(n);
+    for (auto& w : weights) w = 0.002 * uniform(random);
+    const auto expected =
+        build_power_diagram(centers, weights, domain, {}, false, PowerDiagramMethod::regular_triangulation);
+    const auto cells = build_chart_diagram_with_fixed_centers(centers, weights, power_bisector(centers, weights),
+                                                              domain, false, warm.get());
+    ASSERT_EQ(cells.size(), n);
+    double total = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      ASSERT_EQ(cells[i].neighbors, expected[i].neighbors) << "round " << round << " cell " << i;
+      ASSERT_EQ(cells[i].vertices, expected[i].vertices) << "round " << round << " cell " << i;
+      total += area(cells[i]);
+    }
+    EXPECT_NEAR(total, domain.area(), 1e-12);
+  }
+  // Bisectors with the wrong sign: no cell in the domain is the power cell.
+  std::vector<double> zero(n, 0.0);
+  const auto flipped = [&](std::size_t i, std::size_t j) {
+    const ChartLine line = power_bisector(centers, zero)(i, j);
+    return ChartLine{-line.normal, -line.offset};
+  };
+  const auto wrong = build_chart_diagram_with_fixed_centers(centers, zero, flipped, domain);
+  const auto right = build_power_diagram(centers, zero, domain);
+  std::size_t cells_in_domain = 0, same = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (!right[i].empty()) ++cells_in_domain, same += wrong[i].vertices == right[i].vertices;
+  EXPECT_GT(cells_in_domain, n / 2);
+  EXPECT_EQ(same, 0U);
+}
+
+TEST(ChartDiagram, FixedCentresNeedOneWeightEach) {
   const std::vector<Vec2> centers{{0, 0}, {1, 0}};
   const std::vector<double> weights{0, 0, 0};
   const auto square = ConvexPolygon::rectangle(-1, -1, 2, 2);
   try {
-    (void)build_chart_diagram_with_fixed_centers(dual, square, centers, weights);
+    (void)build_chart_diagram_with_fixed_centers(centers, weights, power_bisector(centers, weights), square);
     FAIL() << "no error";
   } catch (const InputError& error) {
-    EXPECT_NE(std::string(error.what()).find("fixed_centers"), std::string::npos) << error.what();
-    EXPECT_NE(std::string(error.what()).find("2 fixed centres and 3 power weights for 3 functions"), std::string::npos)
+    EXPECT_NE(std::string(error.what()).find("fixed_power_weights: there are 3 power weights for 2 fixed centres"),
+              std::string::npos)
         << error.what();
   }
 }
 
 TEST(ChartDiagram, NonFiniteInputsGiveEmptyCells) {
-  // A centre, power weight or fixed centre that overflowed: every cell empty (which a line search
+  // A centre, power weight or bisector that overflowed: empty cells (which a line search
   // rejects), never an infinity handed to the exact predicates (CGAL aborts on those).
   const auto square = ConvexPolygon::rectangle(-1, -1, 2, 2);
   const std::vector<Vec2> centers{{0, 0}, {0.5, 0}, {0, 0.5}, {0.5, 0.5}};
   const double infinity = std::numeric_limits<double>::infinity();
+  const std::vector<double> zero(4, 0.0);
   for (const PowerDiagramMethod method : builders())
     for (const double bad : {infinity, -infinity, std::numeric_limits<double>::quiet_NaN()}) {
       SCOPED_TRACE(name(method));
@@ -660,22 +711,23 @@ TEST(ChartDiagram, NonFiniteInputsGiveEmptyCells) {
         EXPECT_TRUE(cell.empty());
       std::vector<Vec2> far = centers;
       far[1].y() = bad;
-      const std::vector<double> zero(4, 0.0);
       for (const auto& cell : build_power_diagram(far, zero, square, {}, false, method)) EXPECT_TRUE(cell.empty());
     }
-  const std::vector<double> zero(4, 0.0);
-  const auto dual = dual_of(centers, zero);
+  if (!has_regular_triangulation()) return;
   std::vector<double> lifted(4, 0.0);
   lifted[3] = infinity;
-  for (const auto& cell : build_chart_diagram_with_fixed_centers(dual, square, centers, lifted))
+  for (const auto& cell :
+       build_chart_diagram_with_fixed_centers(centers, lifted, power_bisector(centers, zero), square))
     EXPECT_TRUE(cell.empty());
-  auto overflowed = dual;
-  overflowed[0].z() = infinity;
-  for (const auto& cell : build_chart_diagram_with_fixed_centers(overflowed, square, centers, zero))
-    EXPECT_TRUE(cell.empty());
-  // The same finite input gives the four quadrants.
-  for (const auto& cell : build_chart_diagram_with_fixed_centers(dual, square, centers, zero))
-    EXPECT_FALSE(cell.empty());
+  // A bisector of cell 0 that is not finite empties that cell only.
+  const auto overflowed = [&](std::size_t i, std::size_t j) {
+    ChartLine line = power_bisector(centers, zero)(i, j);
+    if (i == 0) line.offset = infinity;
+    return line;
+  };
+  const auto cells = build_chart_diagram_with_fixed_centers(centers, zero, overflowed, square);
+  EXPECT_TRUE(cells[0].empty());
+  for (std::size_t i = 1; i < 4; ++i) EXPECT_FALSE(cells[i].empty());
 }
 
 TEST(ChartDiagram, CellFromOrderedLinesDeclinesWhatItCannotCertify) {

@@ -10,6 +10,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -139,20 +140,29 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
                                            std::size_t own_cells = std::numeric_limits<std::size_t>::max(),
                                            PowerDiagramWarmStart* warm_start = nullptr);
 
-/// The cells of build_chart_diagram (method `regular_triangulation`) with the neighbours taken
-/// from the regular triangulation of `fixed_centers` with `fixed_power_weights`, which must be
-/// the same triangulation as that of the envelope's own power centres a_i.xy; the caller's
-/// centres do not move from one build to the next where those do, so `warm_start` (optional)
-/// reaches the next triangulation by flips, as for build_power_diagram. For H²: the Klein points
-/// of the sites with power weights |κ_i|² + e^{h_i}/y_{i,3} (docs/hyperbolic.md). In a build
-/// without CGAL, build_chart_diagram's kd-tree method with the fixed centres as anchors.
-/// InputError when the lists' sizes differ from `dual`'s; every cell empty when a value is not
-/// finite, as for build_power_diagram.
-std::vector<ChartCell> build_chart_diagram_with_fixed_centers(std::span<const Vec3> dual, const ConvexPolygon& domain,
-                                                              std::span<const Vec2> fixed_centers,
-                                                              std::span<const double> fixed_power_weights,
-                                                              bool stop_at_empty_cell = false,
-                                                              PowerDiagramWarmStart* warm_start = nullptr);
+/// A line of the chart plane with the half-plane on its inner side: {u : normal·u + offset ≥ 0}.
+struct ChartLine {
+  Vec2 normal;
+  double offset = 0;
+};
+
+/// The bisector of cells i and j, with cell i on its inner side, in coordinates
+/// u = v − fixed_centers[i] (see build_chart_diagram_with_fixed_centers).
+using ChartBisector = std::function<ChartLine(std::size_t i, std::size_t j)>;
+
+/// A diagram whose neighbours are those of the regular triangulation of `fixed_centers` with
+/// `fixed_power_weights`, and whose cells are cut by `bisector(i, j)`, each cell i in coordinates
+/// u = v − fixed_centers[i] (the cells come back in chart coordinates). For diagrams that are
+/// power diagrams of centres that do not move from one build to the next, while the caller has
+/// more accurate bisectors than those of the power form: for H², the Klein points of the sites
+/// with power weights |κ_i|² + e^{h_i}/y_{i,3}, and bisectors computed from differences of the
+/// sites and weights (docs/hyperbolic.md). `warm_start` (optional) reaches the next
+/// triangulation by flips, as for build_power_diagram. InputError when the sizes differ or the
+/// build has no CGAL (has_regular_triangulation()); every cell empty when a centre or weight is
+/// not finite, and a cell empty when one of its bisectors is not.
+std::vector<ChartCell> build_chart_diagram_with_fixed_centers(
+    std::span<const Vec2> fixed_centers, std::span<const double> fixed_power_weights, const ChartBisector& bisector,
+    const ConvexPolygon& domain, bool stop_at_empty_cell = false, PowerDiagramWarmStart* warm_start = nullptr);
 
 /// Same, with the neighbour candidates already known (e.g. from a 3-D hull).
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,

@@ -321,32 +321,58 @@ Diagram<Hyperbolic::Point> Hyperbolic::build_diagram(std::span<const Point> site
 
 Diagram<Hyperbolic::Point> Hyperbolic::build_diagram(std::span<const Point> sites, const Eigen::VectorXd& weights,
                                                      bool stop_at_empty_cell) const {
-  // In the chart frame x = Λx': ⟨x, e^{−h}y⟩_M = ⟨x', e^{−h}Λ⁻¹y⟩_M = (k', 1)·a' up to x₃' > 0,
-  // with a' = e^{−h} J Λ⁻¹ y. Adding 1 to every a'_z leaves the envelope unchanged and makes the
-  // offsets small: a'_z + 1 = −(expm1(−h) y₃' + |y'₁₂|² / (1 + y₃')), computed without cancellation,
-  // so the bisectors in the chart carry less rounding (math.md §5, "H² numerics").
+  // In the chart frame x = Λx' of the domain's centre: ⟨x, e^{−h}y⟩_M = ⟨x', e^{−h}Λ⁻¹y⟩_M, and
+  // the cells are found in the Klein chart k' of x' (math.md §5, "H² numerics").
   // The neighbours: minimising e^{−h_i}⟨(k, 1), y_i⟩ over i picks the faces of the hull of the
   // points P_i = e^{−h_i} y₃ (κ_i, 1) that face the origin, κ_i the Klein point of site i. Those
   // are the upper hull of the lifted points (κ_i, e^{h_i}/y₃): the regular triangulation of the
   // Klein points with power weights |κ_i|² + e^{h_i}/y₃ (docs/hyperbolic.md). Its centres do not
   // move with the weights, so each build starts from the last one's triangulation by flips.
-  std::vector<Vec3> dual(sites.size());
-  std::vector<Eigen::Vector2d> klein(sites.size());  // the sites' Klein points: where their cells are
-  std::vector<double> lifted(sites.size());
-  for (std::size_t i = 0; i < sites.size(); ++i) {
-    const double h = weights[static_cast<Eigen::Index>(i)];
+  // The bisectors come from differences of the sites and weights (below), not from the power
+  // form, whose weights carry the rounding of |c|², an error that grows like the number of sites
+  // relative to the cells' masses (docs/hyperbolic.md, "Precision").
+  const std::size_t n = sites.size();
+  std::vector<Point> local(n);            // the sites in the chart frame, y₃ re-projected onto the hyperboloid
+  std::vector<Eigen::Vector2d> klein(n);  // the sites' Klein points: where their cells are
+  std::vector<double> lifted(n);
+  for (std::size_t i = 0; i < n; ++i) {
     const Point y = inverse_boost_ * sites[i];
-    const double horizontal = y.head<2>().squaredNorm();
-    const double height = std::sqrt(1 + horizontal);  // y₃' re-projected onto the hyperboloid
-    dual[i] = Vec3(std::exp(-h) * y.x(), std::exp(-h) * y.y(), -(std::expm1(-h) * height + horizontal / (1 + height)));
+    const double height = std::sqrt(1 + y.head<2>().squaredNorm());
+    local[i] = Point(y.x(), y.y(), height);
     klein[i] = y.head<2>() / height;
-    lifted[i] = klein[i].squaredNorm() + std::exp(h) / height;
+    lifted[i] = klein[i].squaredNorm() + std::exp(weights[static_cast<Eigen::Index>(i)]) / height;
+  }
+  std::vector<ChartCell> cells;
+  if (has_regular_triangulation()) {
+    // Cell i is where e^{−h_i}⟨X, y_i⟩ ≥ e^{−h_j}⟨X, y_j⟩ for X = (k, 1), i.e. ⟨X, m⟩_M ≥ 0 with
+    // m = e^{h_j − h_i} y_i − y_j = expm1(h_j − h_i) y_i + (y_i − y_j), whose third coordinate
+    // y_{i,3} − y_{j,3} = (y_i − y_j)₁₂·(y_i + y_j)₁₂ / (y_{i,3} + y_{j,3}) keeps its digits too. In
+    // u = k − κ_i: m₁₂·u + m₁₂·κ_i − m₃ ≥ 0.
+    const auto bisector = [&](std::size_t i, std::size_t j) {
+      const double rate = std::expm1(weights[static_cast<Eigen::Index>(j)] - weights[static_cast<Eigen::Index>(i)]);
+      const Point& yi = local[i];
+      const Point& yj = local[j];
+      const Eigen::Vector2d difference = yi.head<2>() - yj.head<2>();
+      const Eigen::Vector2d normal = rate * yi.head<2>() + difference;
+      const double third = rate * yi.z() + difference.dot(yi.head<2>() + yj.head<2>()) / (yi.z() + yj.z());
+      return ChartLine{normal, normal.dot(klein[i]) - third};
+    };
+    cells = build_chart_diagram_with_fixed_centers(klein, lifted, bisector, chart_domain_, stop_at_empty_cell,
+                                                   warm_start_.get());
+  } else {
+    // The envelope of f_i(k) = a'·(k, 1), a' = e^{−h} J Λ⁻¹ y up to x₃' > 0: adding 1 to every a'_z
+    // leaves it unchanged and makes the offsets small, a'_z + 1 = −(expm1(−h) y₃' + |y'₁₂|² / (1 + y₃')),
+    // computed without cancellation.
+    std::vector<Vec3> dual(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double h = weights[static_cast<Eigen::Index>(i)];
+      const Point& y = local[i];
+      const double horizontal = y.head<2>().squaredNorm();
+      dual[i] = Vec3(std::exp(-h) * y.x(), std::exp(-h) * y.y(), -(std::expm1(-h) * y.z() + horizontal / (1 + y.z())));
+    }
+    cells = build_chart_diagram(dual, chart_domain_, klein, stop_at_empty_cell);
   }
   Diagram<Point> diagram;
-  const auto cells = has_regular_triangulation()
-                         ? build_chart_diagram_with_fixed_centers(dual, chart_domain_, klein, lifted,
-                                                                  stop_at_empty_cell, warm_start_.get())
-                         : build_chart_diagram(dual, chart_domain_, klein, stop_at_empty_cell);
   diagram.cells.resize(cells.size());
 #pragma omp parallel for schedule(dynamic, 256)
   for (std::size_t i = 0; i < cells.size(); ++i) {
