@@ -330,7 +330,7 @@ Diagram<Hyperbolic::Point> Hyperbolic::build_diagram(std::span<const Point> site
   // move with the weights, so each build starts from the last one's triangulation by flips.
   // The bisectors come from differences of the sites and weights (below), not from the power
   // form, whose weights carry the rounding of |c|², an error that grows like the number of sites
-  // relative to the cells' masses (docs/hyperbolic.md, "Precision").
+  // relative to the cells' masses (docs/hyperbolic.md, "Precision and the number of sites").
   const std::size_t n = sites.size();
   std::vector<Point> local(n);            // the sites in the chart frame, y₃ re-projected onto the hyperboloid
   std::vector<Eigen::Vector2d> klein(n);  // the sites' Klein points: where their cells are
