@@ -142,7 +142,9 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
 
 /// A line of the chart plane with the half-plane on its inner side: {u : normal·u + offset ≥ 0}.
 struct ChartLine {
+  /// Points into the half-plane; any length (the line is normal·u + offset = 0).
   Vec2 normal;
+  /// The value of normal·u + offset at u = 0.
   double offset = 0;
 };
 
