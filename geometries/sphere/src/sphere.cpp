@@ -479,7 +479,8 @@ void Sphere::validate_sites(std::span<const Point> sites) const {
   std::vector<Vec3> p(sites.size());
   for (std::size_t i = 0; i < sites.size(); ++i) {
     if (!sites[i].allFinite()) throw InputError(indexed("sites", i), "coordinate is not finite");
-    const double norm = sites[i].stableNorm();
+    double norm = sites[i].norm();
+    if (!(norm > 0 && std::isfinite(norm))) norm = sites[i].stableNorm();  // |x|² under- or overflowed
     if (!(norm > 0)) throw InputError(indexed("sites", i), "is the zero vector (a site is a direction in R³)");
     // The geometry normalises sites by their norm, whose square overflows or underflows beyond.
     if (!(norm <= 1e150 && norm >= 1e-150))
