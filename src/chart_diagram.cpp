@@ -773,21 +773,6 @@ std::vector<ChartCell> build_power_diagram(std::span<const Vec2> centers, std::s
   return cells;
 }
 
-namespace {
-/// The affine functions f_i(v) = a_i·(v, 1) as power-diagram sites: maximising f_i is minimising
-/// pow_i(v) = |v|² − 2 f_i(v) = |v − c_i|² − w_i, with c_i = a_i.xy and w_i = 2 a_i.z + |c_i|².
-struct PowerForm {
-  std::vector<Vec2> centers;
-  std::vector<double> weights;
-  explicit PowerForm(std::span<const Vec3> dual) : centers(dual.size()), weights(dual.size()) {
-    for (std::size_t i = 0; i < dual.size(); ++i) {
-      centers[i] = dual[i].head<2>();
-      weights[i] = 2 * dual[i].z() + centers[i].squaredNorm();
-    }
-  }
-};
-}  // namespace
-
 std::vector<ChartCell> build_chart_diagram_with_fixed_centers(std::span<const Vec2> fixed_centers,
                                                               std::span<const double> fixed_power_weights,
                                                               const ChartBisector& bisector,
@@ -814,8 +799,15 @@ std::vector<ChartCell> build_chart_diagram_with_fixed_centers(std::span<const Ve
 std::vector<ChartCell> build_chart_diagram(std::span<const Vec3> dual, const ConvexPolygon& domain,
                                            std::span<const Vec2> anchors, bool stop_at_empty_cell,
                                            PowerDiagramMethod method) {
-  const PowerForm power(dual);
-  return build_power_diagram(power.centers, power.weights, domain, anchors, stop_at_empty_cell, method);
+  // The affine functions as power-diagram sites: maximising f_i is minimising
+  // pow_i(v) = |v|² − 2 f_i(v) = |v − c_i|² − w_i, with c_i = a_i.xy and w_i = 2 a_i.z + |c_i|².
+  std::vector<Vec2> centers(dual.size());
+  std::vector<double> weights(dual.size());
+  for (std::size_t i = 0; i < dual.size(); ++i) {
+    centers[i] = dual[i].head<2>();
+    weights[i] = 2 * dual[i].z() + centers[i].squaredNorm();
+  }
+  return build_power_diagram(centers, weights, domain, anchors, stop_at_empty_cell, method);
 }
 
 Hull3 convex_hull_3d(std::span<const Vec3> points, bool with_surface) {

@@ -334,16 +334,17 @@ Diagram<Hyperbolic::Point> Hyperbolic::build_diagram(std::span<const Point> site
   const std::size_t n = sites.size();
   std::vector<Point> local(n);            // the sites in the chart frame, y₃ re-projected onto the hyperboloid
   std::vector<Eigen::Vector2d> klein(n);  // the sites' Klein points: where their cells are
-  std::vector<double> lifted(n);
   for (std::size_t i = 0; i < n; ++i) {
     const Point y = inverse_boost_ * sites[i];
     const double height = std::sqrt(1 + y.head<2>().squaredNorm());
     local[i] = Point(y.x(), y.y(), height);
     klein[i] = y.head<2>() / height;
-    lifted[i] = klein[i].squaredNorm() + std::exp(weights[static_cast<Eigen::Index>(i)]) / height;
   }
   std::vector<ChartCell> cells;
   if (has_regular_triangulation()) {
+    std::vector<double> lifted(n);
+    for (std::size_t i = 0; i < n; ++i)
+      lifted[i] = klein[i].squaredNorm() + std::exp(weights[static_cast<Eigen::Index>(i)]) / local[i].z();
     // Cell i is where e^{−h_i}⟨X, y_i⟩ ≥ e^{−h_j}⟨X, y_j⟩ for X = (k, 1), i.e. ⟨X, m⟩_M ≥ 0 with
     // m = e^{h_j − h_i} y_i − y_j = expm1(h_j − h_i) y_i + (y_i − y_j), whose third coordinate
     // y_{i,3} − y_{j,3} = (y_i − y_j)₁₂·(y_i + y_j)₁₂ / (y_{i,3} + y_{j,3}) keeps its digits too. In
