@@ -42,13 +42,13 @@ struct Rows {
 using RowMatrix = Rows<double>;
 using SingleRows = Rows<float>;
 
-/// Single-precision values borrowing `a`'s index arrays (valid while `a`'s arrays live).
-SingleRows to_single_sharing(const RowMatrix& a) {
-  SingleRows s;
+/// `s` = single-precision values of `a`, borrowing `a`'s index arrays (valid while `a`'s arrays
+/// live); `s`'s value array keeps its capacity.
+void share_as_single(const RowMatrix& a, SingleRows& s) {
   s.rows = a.rows, s.cols = a.cols;
+  s.start.clear(), s.column.clear();
   s.shared_start = a.start.data(), s.shared_column = a.column.data();
   s.value.assign(a.value.begin(), a.value.end());
-  return s;
 }
 
 /// Single-precision copy that takes over `a`'s index arrays (`a` is left empty).
@@ -422,29 +422,35 @@ void MultigridSolver::compute(const SparseMatrix& matrix) {
     h.info = Eigen::InvalidInput;
     return;
   }
-  RowMatrix a;
-  a.rows = a.cols = static_cast<int>(matrix.rows());
-  a.start.assign(matrix.outerIndexPtr(), matrix.outerIndexPtr() + matrix.outerSize() + 1);
-  a.column.assign(matrix.innerIndexPtr(), matrix.innerIndexPtr() + matrix.nonZeros());
-  a.value.assign(matrix.valuePtr(), matrix.valuePtr() + matrix.nonZeros());
+  // Copies the input into `a`, whose arrays keep their capacity: the finest level of the last
+  // hierarchy is overwritten in place rather than freed and allocated again (at 10⁶ unknowns
+  // 100 MB of fresh pages per Newton step, which the kernel must zero).
+  auto copy_into = [&matrix](RowMatrix& a) {
+    a.rows = a.cols = static_cast<int>(matrix.rows());
+    a.start.assign(matrix.outerIndexPtr(), matrix.outerIndexPtr() + matrix.outerSize() + 1);
+    a.column.assign(matrix.innerIndexPtr(), matrix.innerIndexPtr() + matrix.nonZeros());
+    a.value.assign(matrix.valuePtr(), matrix.valuePtr() + matrix.nonZeros());
+  };
   // A matrix of the size of the last one (the next Newton step's Hessian) keeps the coarse levels
   // while they precondition well: only the finest level, where the smoother and the conjugate
   // gradients run, takes the new matrix.
-  if (settings_.reuse_hierarchy && !h.rebuild && previous_built && h.levels.front().matrix.rows == a.rows) {
+  if (settings_.reuse_hierarchy && !h.rebuild && previous_built && h.levels.front().matrix.rows == matrix.rows()) {
     Level& finest = h.levels.front();
+    copy_into(finest.matrix);
     bool positive = false;
-    Eigen::VectorXd diagonal = diagonal_of(a, positive);
+    finest.diagonal = diagonal_of(finest.matrix, positive);
     if (!positive) {
+      h.levels.clear();
       h.info = Eigen::NumericalIssue;
       return;
     }
-    finest.smoother_inverse = smoother_diagonal(a, diagonal).cwiseInverse();
-    finest.matrix = std::move(a);
-    finest.single = to_single_sharing(finest.matrix);
-    finest.diagonal = std::move(diagonal);
+    finest.smoother_inverse = smoother_diagonal(finest.matrix, finest.diagonal).cwiseInverse();
+    share_as_single(finest.matrix, finest.single);
     h.reused = true;
     return;
   }
+  RowMatrix a;
+  copy_into(a);
   h.build(std::move(a), settings_);
 }
 
@@ -495,7 +501,10 @@ void MultigridSolver::Hierarchy::build(RowMatrix finest_matrix, const Settings& 
   coarse.compute(coarse_matrix);
   // Only the conjugate gradients need a double-precision matrix, the finest.
   for (std::size_t l = 0; l < levels.size(); ++l)
-    levels[l].single = l == 0 ? to_single_sharing(levels[l].matrix) : to_single(std::move(levels[l].matrix));
+    if (l == 0)
+      share_as_single(levels[l].matrix, levels[l].single);
+    else
+      levels[l].single = to_single(std::move(levels[l].matrix));
   if (coarse.info() != Eigen::Success || !(coarse.vectorD().array() > 0).all()) info = Eigen::NumericalIssue;
 }
 

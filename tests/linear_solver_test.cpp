@@ -162,6 +162,31 @@ TEST(Multigrid, ReportsBadMatricesAndTheIterationLimit) {
   EXPECT_EQ(multigrid.info(), Eigen::InvalidInput);
 }
 
+TEST(Multigrid, ABadMatrixAfterAGoodOneIsRejectedAndTheNextGoodOneSolved) {
+  // The finest level of a built hierarchy is overwritten in place by the next matrix of its
+  // size: a bad one must not leave a half-replaced hierarchy behind.
+  const sdot::SparseMatrix good = weighted_laplacian(60, 11);
+  const Eigen::VectorXd rhs = zero_sum_rhs(good.rows(), 12);
+  sdot::MultigridSolver multigrid;
+  multigrid.setTolerance(1e-10);
+  multigrid.compute(good);
+  (void)multigrid.solve(rhs);
+  ASSERT_EQ(multigrid.info(), Eigen::Success);
+  sdot::SparseMatrix bad = good;
+  bad.coeffRef(40, 40) = -1;
+  multigrid.compute(bad);
+  EXPECT_EQ(multigrid.info(), Eigen::NumericalIssue);
+  (void)multigrid.solve(rhs);
+  EXPECT_NE(multigrid.info(), Eigen::Success);
+  const sdot::SparseMatrix next = weighted_laplacian(60, 13);
+  multigrid.compute(next);
+  ASSERT_EQ(multigrid.info(), Eigen::Success);
+  EXPECT_EQ((multigrid.matrix() - next).norm(), 0.0);
+  const Eigen::VectorXd x = multigrid.solve(rhs);
+  ASSERT_EQ(multigrid.info(), Eigen::Success);
+  EXPECT_LE((rhs - next * x).norm(), 1e-10 * rhs.norm());
+}
+
 TEST(Multigrid, MoreSmoothingSweepsTakeFewerIterationsAndZeroIsRejected) {
   const sdot::SparseMatrix matrix = weighted_laplacian(100, 9);
   const Eigen::VectorXd rhs = zero_sum_rhs(matrix.rows(), 10);
