@@ -266,41 +266,66 @@ std::vector<int> aggregate(const RowMatrix& a, const Eigen::VectorXd& diagonal, 
 /// Gershgorin's max_i Σ_j |a_ij| / a_ii.
 RowMatrix smoothed_prolongation(const RowMatrix& a, const Eigen::VectorXd& diagonal, const std::vector<int>& owner,
                                 int count) {
-  double rho = 0;
-  for (int i = 0; i < a.rows; ++i) {
-    double sum = 0;
-    for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k) sum += std::abs(a.value[k]);
-    rho = std::max(rho, sum / diagonal[i]);
-  }
+  const double rho = block_reduce(
+      a.rows, 0.0,
+      [&](Eigen::Index i) {
+        double sum = 0;
+        for (std::size_t k = a.row_begin(int(i)); k < a.row_end(int(i)); ++k) sum += std::abs(a.value[k]);
+        return sum / diagonal[i];
+      },
+      [](double x, double y) { return std::max(x, y); });
   const double omega = 4.0 / (3.0 * rho);
+  // Rows in blocks of `block_rows`, each block into arrays of its own, joined in block order:
+  // the same matrix whatever the number of threads.
+  const int blocks = (a.rows + block_rows - 1) / block_rows;
+  std::vector<RowMatrix> parts(at(blocks));
+#pragma omp parallel for schedule(dynamic, 1) if (blocks > 1)
+  for (int block = 0; block < blocks; ++block) {
+    const int first_row = block * block_rows, last_row = std::min(a.rows, first_row + block_rows);
+    RowMatrix& part = parts[at(block)];
+    part.start.clear();
+    part.column.reserve(a.row_end(last_row - 1) - a.row_begin(first_row));
+    part.value.reserve(part.column.capacity());
+    for (int i = first_row; i < last_row; ++i) {
+      const std::size_t first = part.column.size();
+      auto add = [&](int c, double v) {
+        for (std::size_t k = first; k < part.column.size(); ++k)
+          if (part.column[k] == c) {
+            part.value[k] += v;
+            return;
+          }
+        part.column.push_back(c), part.value.push_back(v);
+      };
+      if (owner[at(i)] >= 0) add(owner[at(i)], 1.0);
+      for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k)
+        if (owner[at(a.column[k])] >= 0) add(owner[at(a.column[k])], -omega * a.value[k] / diagonal[i]);
+      part.start.push_back(static_cast<int>(part.column.size() - first));
+    }
+  }
   RowMatrix p;
   p.rows = a.rows, p.cols = count;
   p.start.assign(at(a.rows) + 1, 0);
-  p.column.reserve(a.column.size());
-  p.value.reserve(a.column.size());
-  for (int i = 0; i < a.rows; ++i) {
-    const std::size_t first = p.column.size();
-    auto add = [&](int c, double v) {
-      for (std::size_t k = first; k < p.column.size(); ++k)
-        if (p.column[k] == c) {
-          p.value[k] += v;
-          return;
-        }
-      p.column.push_back(c), p.value.push_back(v);
-    };
-    if (owner[at(i)] >= 0) add(owner[at(i)], 1.0);
-    for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k)
-      if (owner[at(a.column[k])] >= 0) add(owner[at(a.column[k])], -omega * a.value[k] / diagonal[i]);
-    p.start[at(i) + 1] = static_cast<int>(p.column.size());
+  std::size_t entries = 0;
+  for (const auto& part : parts) entries += part.column.size();
+  p.column.reserve(entries);
+  p.value.reserve(entries);
+  int row = 0;
+  for (auto& part : parts) {
+    for (int length : part.start) p.start[at(row) + 1] = p.start[at(row)] + length, ++row;
+    p.column.insert(p.column.end(), part.column.begin(), part.column.end());
+    p.value.insert(p.value.end(), part.value.begin(), part.value.end());
+    part = RowMatrix{};
   }
   return p;
 }
 
 Eigen::VectorXd diagonal_of(const RowMatrix& a, bool& positive) {
   Eigen::VectorXd d = Eigen::VectorXd::Zero(a.rows);
-  for (int i = 0; i < a.rows; ++i)
-    for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k)
-      if (a.column[k] == i) d[i] += a.value[k];
+  for_each_block(a.rows, [&](Eigen::Index first, Eigen::Index last) {
+    for (auto i = int(first); i < int(last); ++i)
+      for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k)
+        if (a.column[k] == i) d[i] += a.value[k];
+  });
   positive = (d.array() > 0).all() && d.allFinite();
   return d;
 }
@@ -346,11 +371,13 @@ void gauss_seidel(const Level& level, bool forward, bool from_zero) {
 /// ℓ1 term every sweep reduces the error in the energy norm. With a single block, a_ii.
 Eigen::VectorXd smoother_diagonal(const RowMatrix& a, const Eigen::VectorXd& diagonal) {
   Eigen::VectorXd result = diagonal;
-  for (int i = 0; i < a.rows; ++i) {
-    const int first = i / block_rows * block_rows, last = first + block_rows;
-    for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k)
-      if (a.column[k] < first || a.column[k] >= last) result[i] += std::abs(a.value[k]);
-  }
+  for_each_block(a.rows, [&](Eigen::Index first_row, Eigen::Index last_row) {
+    for (auto i = int(first_row); i < int(last_row); ++i) {
+      const int first = i / block_rows * block_rows, last = first + block_rows;
+      for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k)
+        if (a.column[k] < first || a.column[k] >= last) result[i] += std::abs(a.value[k]);
+    }
+  });
   return result;
 }
 
