@@ -43,11 +43,14 @@ std::vector<double> vertex_targets(const Mesh& mesh, const std::vector<double>& 
 /// on the planar embedding (times the stereographic area factor): crushed faces there are 1e-12
 /// across, far below what points on the unit sphere resolve. With `crushed`, the reweighting stops early when
 /// four reweightings gain less than 0.25 on that quantile; `crushed` then says that the map is
-/// still crushed (the pipeline then uses hierarchical_sphere_map). `uniform_weights`: all edge
+/// still crushed (with --coarse-to-fine the pipeline then uses hierarchical_sphere_map). It
+/// also stops so, with or without `crushed`, when that quantile is below rounding (faces of area
+/// under 1e-28 on the unit sphere, whose vertices coincide there); `crushed_below_rounding` then
+/// says so (the pipeline then always uses hierarchical_sphere_map). `uniform_weights`: all edge
 /// weights 1 instead of the clamped cotangents.
 std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets = {},
                                    int max_reweightings = 0, int* reweightings = nullptr, bool* crushed = nullptr,
-                                   bool uniform_weights = false);
+                                   bool uniform_weights = false, bool* crushed_below_rounding = nullptr);
 
 struct HierarchyInfo {
   int levels = 0;                 ///< collapse levels

@@ -316,11 +316,11 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
   // 1. Initial map: Tutte embedding, inverse stereographic projection, Möbius balancing.
   auto t = Clock::now();
   int reweightings = 0;
-  bool crushed = false;
+  bool crushed = false, below_rounding = false;
   std::vector<Vec3> s = tutte_sphere_map(mesh, topo, targets, options.max_reweightings, &reweightings,
-                                         options.hierarchical_initial_map ? &crushed : nullptr);
+                                         options.hierarchical_initial_map ? &crushed : nullptr, false, &below_rounding);
   std::string how = "Tutte + " + std::to_string(reweightings) + " stretch reweightings + stereographic";
-  if (crushed && options.hierarchical_initial_map) {
+  if ((crushed && options.hierarchical_initial_map) || below_rounding) {
     // tubes that the reweighting cannot open: their sites would coincide on the sphere
     s = hierarchical_sphere_map(mesh, 40, &R.hierarchy);
     ++R.fallbacks.hierarchical_initial_map;
@@ -338,190 +338,201 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
   int refine = options.refine;
   if (refine < 0) refine = mesh.vertices.size() <= 15000 ? 1 : 0;
   R.ot.refine = refine;
+  // A flip-free coarse-to-fine map goes straight to the flip-free optimization (step 5): it is
+  // area-corrected at every level already, and it is far from conformal (thin strips for the
+  // tubes), where the OT cells are not: their centroids folded 18,200 of tubes_25k's 49,520
+  // faces, of which the untangling left 554.
+  if (R.fallbacks.hierarchical_initial_map > 0 && count_flips(mesh, s) == 0) {
+    R.ot.status = "skipped";
+    R.ot.message = "the coarse-to-fine initial map is flip-free and area-corrected";
+    record("ot_centroids", since(t), s, "OT skipped: coarse-to-fine start");
+  } else {
 #ifdef SPHPARAM_HAVE_SPHERE
-  {
-    // 2a. Separate crushed sites: coarse OT passes on well-separated representatives.
-    const double h0 = std::sqrt(4 * M_PI / static_cast<double>(s.size()));
-    for (int pass = 0; pass < 8; ++pass) {
-      const double spacing = min_edge_length(mesh, s);
-      if (spacing >= options.min_spacing * h0) break;
-      const auto tp = Clock::now();
-      const std::string note = separate_clusters(s, masses, options.separation_delta * h0, R.ot);
-      ++R.fallbacks.separation_passes;
-      record("separation_pass_" + std::to_string(pass + 1), since(tp), s, note);
-    }
-  }
-  // 2b–4. OT on the mesh vertices (and refined Diracs), centroids, untangling. Should flips
-  //       survive the untangling, the stage reruns from the same start with one more Dirac
-  //       refinement level: finer Diracs sample the mesh better and leave fewer, smaller folds.
-  // The OT start; `s` is rebuilt from it at every level (at 2 M vertices each copy is 52 MB).
-  const std::vector<Vec3> separated = std::move(s);
-  const int max_refine = std::max(refine, options.max_refine);
-  for (int level = refine;; ++level) {
-    s.clear();
-    R.ot = OtRecord{};
-    R.ot.refine = level;
-    t = Clock::now();
     {
-      // Without refinement the Diracs are the vertices, with their masses: no copies.
-      Mesh dirac_mesh;
-      std::vector<Vec3> refined_sites;
-      std::vector<double> factors = level > 0 ? options.vertex_factors : std::vector<double>{};
-      for (int split = 0; split < level; ++split) {
-        const Mesh& coarse_mesh = split == 0 ? mesh : dirac_mesh;
-        Mesh fine = subdivide(coarse_mesh);
-        if (split == 0) refined_sites = separated;
-        refined_sites.resize(fine.vertices.size());
-        if (!factors.empty()) factors.resize(fine.vertices.size());
-        for (std::size_t fi = 0; fi < coarse_mesh.faces.size(); ++fi) {
-          const auto& coarse = coarse_mesh.faces[fi];
-          const auto& centre = fine.faces[4 * fi + 3];  // (ab, bc, ca)
-          const int ends[3][2] = {{coarse[0], coarse[1]}, {coarse[1], coarse[2]}, {coarse[2], coarse[0]}};
-          for (int k = 0; k < 3; ++k) {
-            const auto m = u(centre[u(k)]);
-            refined_sites[m] = (refined_sites[u(ends[k][0])] + refined_sites[u(ends[k][1])]).normalized();
-            if (!factors.empty()) factors[m] = 0.5 * (factors[u(ends[k][0])] + factors[u(ends[k][1])]);
-          }
-        }
-        dirac_mesh = std::move(fine);
-      }
-      const Mesh& diracs = level > 0 ? dirac_mesh : mesh;
-      const std::vector<Vec3>& sites = level > 0 ? refined_sites : separated;
-      std::vector<double> refined_masses;
-      if (level > 0) refined_masses = vertex_targets(dirac_mesh, face_targets(dirac_mesh, factors));
-      const std::vector<double>& dirac_masses = level > 0 ? refined_masses : masses;
-      R.ot.sites = sites.size();
-      say("OT: " + std::to_string(sites.size()) + " Diracs (refinement " + std::to_string(level) + ")");
-      // A third of the incident spherical triangle areas: nearly the Voronoi areas where the map is
-      // flip-free. Vertices of flipped faces get none (NaN); with more than 1 % of them, no estimate.
-      std::vector<double> map_areas(sites.size(), 0.0);
-      std::size_t unknown = 0;
-      for (const auto& f : diracs.faces) {
-        const Vec3 &a = sites[u(f[0])], &b = sites[u(f[1])], &c = sites[u(f[2])];
-        const double area = a.dot(b.cross(c)) > 0 ? spherical_triangle_area(a, b, c) / 3 : NAN;
-        for (int v : f) map_areas[u(v)] += area;
-      }
-      for (double a : map_areas) unknown += std::isnan(a);
-      const std::vector<double>* area_estimate = unknown * 100 <= sites.size() ? &map_areas : nullptr;
-      OtOutcome o =
-          solve_ot(sites, dirac_masses, options.ot_tolerance, options.ot_max_iterations, say, &R.ot, area_estimate);
-      if (o.usable) {
-        o.centroids.resize(separated.size());  // the mesh vertices come first
-        s = std::move(o.centroids);
-      } else {
-        s = separated;
+      // 2a. Separate crushed sites: coarse OT passes on well-separated representatives.
+      const double h0 = std::sqrt(4 * M_PI / static_cast<double>(s.size()));
+      for (int pass = 0; pass < 8; ++pass) {
+        const double spacing = min_edge_length(mesh, s);
+        if (spacing >= options.min_spacing * h0) break;
+        const auto tp = Clock::now();
+        const std::string note = separate_clusters(s, masses, options.separation_delta * h0, R.ot);
+        ++R.fallbacks.separation_passes;
+        record("separation_pass_" + std::to_string(pass + 1), since(tp), s, note);
       }
     }
-    record("ot_centroids", since(t), s, "OT " + R.ot.status + ", " + std::to_string(R.ot.iterations) + " Newton it");
-    // 4. Untangle. First area-aware: a regularised area energy log²(A_ε/T) with a decreasing ε
-    //    (inverted faces have finite energy, vertices can pass through them); then monotone
-    //    Laplacian moves around what is left, then free Laplacian smoothing on growing rings.
-    t = Clock::now();
-    if (count_flips(mesh, s) > 0) {
-      // In chunks of 10 sweeps, up to 60 per ε: once no face is flipped, the flip-free area
-      // optimization (step 5) takes over, which improves the areas at a lower cost per sweep
-      // (bunny_35k: 1.05 s → 0.18 s here, final area mean|d| 0.0126 → 0.0150).
-      OptimizeOptions uo;
-      uo.angle_weight = 0;
-      uo.max_sweeps = 10;
-      uo.activity_threshold = 1e-4;
-      std::size_t flips = count_flips(mesh, s), previous_flips = flips;
-      // Few flipped faces in a large mesh: each chunk starts from the vertices within 4 rings of
-      // them (a move still wakes its neighbours) instead of from every vertex, and the flip-free
-      // optimization (step 5) does the global area work (brain_48k Loop-subdivided twice, 775,762
-      // vertices, 14 flipped faces after OT: untangling 3.83 s -> 0.29 s, the whole map 28.3 s ->
-      // 20.1 s, final area mean|d| 0.0034 -> 0.0043).
-      const bool local_untangling = mesh.vertices.size() >= local_untangling_from && flips * 1000 <= mesh.faces.size();
-      int stalled_levels = 0;
-      for (double eps : {1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5}) {
-        uo.regularization = eps;
-        int sweeps = 0;
-        for (int chunk = 0; chunk < 6 && flips > 0; ++chunk) {
-          if (local_untangling) uo.start_active = near_flipped_faces(mesh, topo, s, 4);
-          sweeps += optimize_area(mesh, topo, targets, s, uo).sweeps;
-          flips = count_flips(mesh, s);
-        }
-        say("  untangling, eps " + fmt_g(eps) + ": " + std::to_string(sweeps) + " sweeps, " + std::to_string(flips) +
-            " flipped faces left");
-        if (flips > 0 && flips <= 50) {
-          // a few stuck folds: the patch re-embedding (below) is far cheaper than more ε levels
-          // (armadillo_43k: 2 flips left after ε = 0.1, then 8 more levels of 60 sweeps, 13 s)
-          std::vector<Vec3> trial = s;
-          if (repair_flips_by_patches(mesh, topo, trial, 64, &R.fallbacks.flip_patches, &R.fallbacks.chart_untangles) ==
-              0) {
-            s = std::move(trial);
-            flips = 0;
-            say("  untangling: the last flipped faces re-embedded in patches");
-          }
-        }
-        // the same few folds after three levels: smaller ε will not open them (arm.off: 2 flips
-        // from ε = 0.01 to 1e-5, 1.3 s); the steps below take over
-        stalled_levels = flips > 0 && flips <= 50 && flips >= previous_flips ? stalled_levels + 1 : 0;
-        previous_flips = flips;
-        if (stalled_levels >= 3) break;
-        if (flips == 0) break;
-      }
-      record("untangle_regularized", since(t), s, "regularised area energy, eps 0.1 -> 1e-5");
+    // 2b–4. OT on the mesh vertices (and refined Diracs), centroids, untangling. Should flips
+    //       survive the untangling, the stage reruns from the same start with one more Dirac
+    //       refinement level: finer Diracs sample the mesh better and leave fewer, smaller folds.
+    // The OT start; `s` is rebuilt from it at every level (at 2 M vertices each copy is 52 MB).
+    const std::vector<Vec3> separated = std::move(s);
+    const int max_refine = std::max(refine, options.max_refine);
+    for (int level = refine;; ++level) {
+      s.clear();
+      R.ot = OtRecord{};
+      R.ot.refine = level;
       t = Clock::now();
-    }
-    R.untangle_remaining = count_flips(mesh, s);
-    if (R.untangle_remaining > 0) {
-      // re-embed a growing disk around each flipped face (positive weights), then repair its areas
-      const std::size_t before = R.untangle_remaining;
-      R.untangle_remaining =
-          repair_flips_by_patches(mesh, topo, s, 64, &R.fallbacks.flip_patches, &R.fallbacks.chart_untangles);
-      record("untangle_patches", since(t), s, std::to_string(before) + " flipped faces before");
+      {
+        // Without refinement the Diracs are the vertices, with their masses: no copies.
+        Mesh dirac_mesh;
+        std::vector<Vec3> refined_sites;
+        std::vector<double> factors = level > 0 ? options.vertex_factors : std::vector<double>{};
+        for (int split = 0; split < level; ++split) {
+          const Mesh& coarse_mesh = split == 0 ? mesh : dirac_mesh;
+          Mesh fine = subdivide(coarse_mesh);
+          if (split == 0) refined_sites = separated;
+          refined_sites.resize(fine.vertices.size());
+          if (!factors.empty()) factors.resize(fine.vertices.size());
+          for (std::size_t fi = 0; fi < coarse_mesh.faces.size(); ++fi) {
+            const auto& coarse = coarse_mesh.faces[fi];
+            const auto& centre = fine.faces[4 * fi + 3];  // (ab, bc, ca)
+            const int ends[3][2] = {{coarse[0], coarse[1]}, {coarse[1], coarse[2]}, {coarse[2], coarse[0]}};
+            for (int k = 0; k < 3; ++k) {
+              const auto m = u(centre[u(k)]);
+              refined_sites[m] = (refined_sites[u(ends[k][0])] + refined_sites[u(ends[k][1])]).normalized();
+              if (!factors.empty()) factors[m] = 0.5 * (factors[u(ends[k][0])] + factors[u(ends[k][1])]);
+            }
+          }
+          dirac_mesh = std::move(fine);
+        }
+        const Mesh& diracs = level > 0 ? dirac_mesh : mesh;
+        const std::vector<Vec3>& sites = level > 0 ? refined_sites : separated;
+        std::vector<double> refined_masses;
+        if (level > 0) refined_masses = vertex_targets(dirac_mesh, face_targets(dirac_mesh, factors));
+        const std::vector<double>& dirac_masses = level > 0 ? refined_masses : masses;
+        R.ot.sites = sites.size();
+        say("OT: " + std::to_string(sites.size()) + " Diracs (refinement " + std::to_string(level) + ")");
+        // A third of the incident spherical triangle areas: nearly the Voronoi areas where the map is
+        // flip-free. Vertices of flipped faces get none (NaN); with more than 1 % of them, no estimate.
+        std::vector<double> map_areas(sites.size(), 0.0);
+        std::size_t unknown = 0;
+        for (const auto& f : diracs.faces) {
+          const Vec3 &a = sites[u(f[0])], &b = sites[u(f[1])], &c = sites[u(f[2])];
+          const double area = a.dot(b.cross(c)) > 0 ? spherical_triangle_area(a, b, c) / 3 : NAN;
+          for (int v : f) map_areas[u(v)] += area;
+        }
+        for (double a : map_areas) unknown += std::isnan(a);
+        const std::vector<double>* area_estimate = unknown * 100 <= sites.size() ? &map_areas : nullptr;
+        OtOutcome o =
+            solve_ot(sites, dirac_masses, options.ot_tolerance, options.ot_max_iterations, say, &R.ot, area_estimate);
+        if (o.usable) {
+          o.centroids.resize(separated.size());  // the mesh vertices come first
+          s = std::move(o.centroids);
+        } else {
+          s = separated;
+        }
+      }
+      record("ot_centroids", since(t), s, "OT " + R.ot.status + ", " + std::to_string(R.ot.iterations) + " Newton it");
+      // 4. Untangle. First area-aware: a regularised area energy log²(A_ε/T) with a decreasing ε
+      //    (inverted faces have finite energy, vertices can pass through them); then monotone
+      //    Laplacian moves around what is left, then free Laplacian smoothing on growing rings.
       t = Clock::now();
-    }
-    if (R.untangle_remaining > 0 && level < max_refine) {
-      // the Laplacian rounds below are slow and rarely finish the job: refine the Diracs first
-      say(std::to_string(R.untangle_remaining) + " flipped faces left: OT again with refinement " +
-          std::to_string(level + 1));
-      ++R.fallbacks.ot_reruns;
-      continue;
-    }
-    for (int round = 0; round < 4 && R.untangle_remaining > 0; ++round) {
-      // monotone Laplacian moves rearrange the stuck spots, then the regularised energy again
-      ++R.fallbacks.laplacian_rounds;
-      untangle(mesh, topo, s, 30, false);
-      OptimizeOptions uo;
-      uo.angle_weight = 0;
-      uo.max_sweeps = 100;
-      uo.activity_threshold = 1e-5;
-      for (double eps : {1e-2, 1e-3, 1e-4, 1e-5}) {
-        uo.regularization = eps;
-        optimize_area(mesh, topo, targets, s, uo);
-        if (count_flips(mesh, s) == 0) break;
+      if (count_flips(mesh, s) > 0) {
+        // In chunks of 10 sweeps, up to 60 per ε: once no face is flipped, the flip-free area
+        // optimization (step 5) takes over, which improves the areas at a lower cost per sweep
+        // (bunny_35k: 1.05 s → 0.18 s here, final area mean|d| 0.0126 → 0.0150).
+        OptimizeOptions uo;
+        uo.angle_weight = 0;
+        uo.max_sweeps = 10;
+        uo.activity_threshold = 1e-4;
+        std::size_t flips = count_flips(mesh, s), previous_flips = flips;
+        // Few flipped faces in a large mesh: each chunk starts from the vertices within 4 rings of
+        // them (a move still wakes its neighbours) instead of from every vertex, and the flip-free
+        // optimization (step 5) does the global area work (brain_48k Loop-subdivided twice, 775,762
+        // vertices, 14 flipped faces after OT: untangling 3.83 s -> 0.29 s, the whole map 28.3 s ->
+        // 20.1 s, final area mean|d| 0.0034 -> 0.0043).
+        const bool local_untangling =
+            mesh.vertices.size() >= local_untangling_from && flips * 1000 <= mesh.faces.size();
+        int stalled_levels = 0;
+        for (double eps : {1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5}) {
+          uo.regularization = eps;
+          int sweeps = 0;
+          for (int chunk = 0; chunk < 6 && flips > 0; ++chunk) {
+            if (local_untangling) uo.start_active = near_flipped_faces(mesh, topo, s, 4);
+            sweeps += optimize_area(mesh, topo, targets, s, uo).sweeps;
+            flips = count_flips(mesh, s);
+          }
+          say("  untangling, eps " + fmt_g(eps) + ": " + std::to_string(sweeps) + " sweeps, " + std::to_string(flips) +
+              " flipped faces left");
+          if (flips > 0 && flips <= 50) {
+            // a few stuck folds: the patch re-embedding (below) is far cheaper than more ε levels
+            // (armadillo_43k: 2 flips left after ε = 0.1, then 8 more levels of 60 sweeps, 13 s)
+            std::vector<Vec3> trial = s;
+            if (repair_flips_by_patches(mesh, topo, trial, 64, &R.fallbacks.flip_patches,
+                                        &R.fallbacks.chart_untangles) == 0) {
+              s = std::move(trial);
+              flips = 0;
+              say("  untangling: the last flipped faces re-embedded in patches");
+            }
+          }
+          // the same few folds after three levels: smaller ε will not open them (arm.off: 2 flips
+          // from ε = 0.01 to 1e-5, 1.3 s); the steps below take over
+          stalled_levels = flips > 0 && flips <= 50 && flips >= previous_flips ? stalled_levels + 1 : 0;
+          previous_flips = flips;
+          if (stalled_levels >= 3) break;
+          if (flips == 0) break;
+        }
+        record("untangle_regularized", since(t), s, "regularised area energy, eps 0.1 -> 1e-5");
+        t = Clock::now();
       }
       R.untangle_remaining = count_flips(mesh, s);
-    }
-    if (R.untangle_remaining > 0) {
-      ++R.fallbacks.free_smoothing;
-      std::vector<Vec3> trial = s;  // free smoothing may destroy more than it repairs: keep the best
-      const std::size_t left = untangle(mesh, topo, trial, 400, true);
-      if (left < R.untangle_remaining) s = std::move(trial), R.untangle_remaining = left;
-      if (R.untangle_remaining == 0) {
-        // the smoothing damaged the area: repair it with the regularised energy, keep it if flip-free
-        std::vector<Vec3> repaired = s;
+      if (R.untangle_remaining > 0) {
+        // re-embed a growing disk around each flipped face (positive weights), then repair its areas
+        const std::size_t before = R.untangle_remaining;
+        R.untangle_remaining =
+            repair_flips_by_patches(mesh, topo, s, 64, &R.fallbacks.flip_patches, &R.fallbacks.chart_untangles);
+        record("untangle_patches", since(t), s, std::to_string(before) + " flipped faces before");
+        t = Clock::now();
+      }
+      if (R.untangle_remaining > 0 && level < max_refine) {
+        // the Laplacian rounds below are slow and rarely finish the job: refine the Diracs first
+        say(std::to_string(R.untangle_remaining) + " flipped faces left: OT again with refinement " +
+            std::to_string(level + 1));
+        ++R.fallbacks.ot_reruns;
+        continue;
+      }
+      for (int round = 0; round < 4 && R.untangle_remaining > 0; ++round) {
+        // monotone Laplacian moves rearrange the stuck spots, then the regularised energy again
+        ++R.fallbacks.laplacian_rounds;
+        untangle(mesh, topo, s, 30, false);
         OptimizeOptions uo;
         uo.angle_weight = 0;
         uo.max_sweeps = 100;
         uo.activity_threshold = 1e-5;
-        for (double eps : {1e-3, 1e-4, 1e-5}) {
+        for (double eps : {1e-2, 1e-3, 1e-4, 1e-5}) {
           uo.regularization = eps;
-          optimize_area(mesh, topo, targets, repaired, uo);
+          optimize_area(mesh, topo, targets, s, uo);
+          if (count_flips(mesh, s) == 0) break;
         }
-        if (count_flips(mesh, repaired) == 0) s = std::move(repaired);
+        R.untangle_remaining = count_flips(mesh, s);
       }
+      if (R.untangle_remaining > 0) {
+        ++R.fallbacks.free_smoothing;
+        std::vector<Vec3> trial = s;  // free smoothing may destroy more than it repairs: keep the best
+        const std::size_t left = untangle(mesh, topo, trial, 400, true);
+        if (left < R.untangle_remaining) s = std::move(trial), R.untangle_remaining = left;
+        if (R.untangle_remaining == 0) {
+          // the smoothing damaged the area: repair it with the regularised energy, keep it if flip-free
+          std::vector<Vec3> repaired = s;
+          OptimizeOptions uo;
+          uo.angle_weight = 0;
+          uo.max_sweeps = 100;
+          uo.activity_threshold = 1e-5;
+          for (double eps : {1e-3, 1e-4, 1e-5}) {
+            uo.regularization = eps;
+            optimize_area(mesh, topo, targets, repaired, uo);
+          }
+          if (count_flips(mesh, repaired) == 0) s = std::move(repaired);
+        }
+      }
+      record("untangle_laplacian", since(t), s, "monotone, then free on growing rings");
+      break;
     }
-    record("untangle_laplacian", since(t), s, "monotone, then free on growing rings");
-    break;
-  }
 #else
-  R.ot.status = "unavailable";
-  R.ot.message = "built without the sphere geometry";
-  record("ot_centroids", since(t), s, "OT " + R.ot.status);
+    R.ot.status = "unavailable";
+    R.ot.message = "built without the sphere geometry";
+    record("ot_centroids", since(t), s, "OT " + R.ot.status);
 #endif
+  }
 
   // 5. Flip-free area-correcting optimization.
   if (options.optimize && R.untangle_remaining == 0) {

@@ -766,6 +766,42 @@ TEST(Report, FallbackActivationsAreCounted) {
   EXPECT_EQ(spiky["final_map"]["flips"].get<std::size_t>(), 0u);
 }
 
+TEST(Stages, CoarseToFineMapOfALongTubeIsFlipFree) {
+  // a tube 100 times as long as its radius: its Tutte map is crushed far below rounding, the
+  // coarse-to-fine map is an embedding in which every vertex found its place
+  const Mesh m = test::capsule(6, 100);
+  ASSERT_TRUE(validate(m).ok());
+  const Topology topo(m);
+  const auto targets = face_targets(m, {});
+  bool below_rounding = false;
+  (void)tutte_sphere_map(m, topo, targets, 40, nullptr, nullptr, false, &below_rounding);
+  EXPECT_TRUE(below_rounding);
+  HierarchyInfo info;
+  const auto s = hierarchical_sphere_map(m, 40, &info);
+  EXPECT_EQ(count_flips(m, s), 0u);
+  EXPECT_EQ(info.unplaced, 0u);
+  EXPECT_GT(info.levels, 5);
+  std::printf("%zu vertices, %d levels, %zu base vertices\n", m.vertices.size(), info.levels, info.base_vertices);
+}
+
+TEST(Pipeline, LongTubeMapsWithoutFlipsFromTheCoarseToFineMap) {
+  // Not by default through the OT: its sites would coincide. The coarse-to-fine map is used
+  // and the OT skipped (its centroids fold such a map).
+  const Mesh m = test::capsule(6, 100);
+  const auto r = run(m);
+  EXPECT_EQ(r.metrics.flips, 0u);
+  EXPECT_EQ(r.pipeline.fallbacks.hierarchical_initial_map, 1);
+  EXPECT_EQ(r.pipeline.ot.status, "skipped");
+  // 0.36 with each level's targets from the shares collapsed into its vertices, 0.47 with the
+  // coarse meshes' own face areas
+  EXPECT_LT(r.metrics.area_mean_abs, 0.4);
+  std::printf("area mean|d| %.4f, angle %.1f deg\n", r.metrics.area_mean_abs, r.metrics.angle_mean_abs_deg);
+  // an ordinary mesh does not take that path
+  const auto plain = run(test::ellipsoid(3, 1, 2, 4));
+  EXPECT_EQ(plain.pipeline.fallbacks.hierarchical_initial_map, 0);
+  EXPECT_NE(plain.pipeline.ot.status, "skipped");
+}
+
 TEST(Pipeline, SliversAndNeedlesMapWithoutFlips) {
   // needles of 0.001 degrees and 1000:1 area ratios: mapped through the icosphere they refine
   const Mesh m = test::sliver_sphere(4);

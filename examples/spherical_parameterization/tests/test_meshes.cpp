@@ -63,6 +63,35 @@ Mesh spiky_sphere(int level, int count, double length, double width) {
   return m;
 }
 
+Mesh capsule(int around, double length) {
+  const double step = 2 * M_PI / around;
+  const double spacing = 2 * std::sin(step / 2) * std::sqrt(3.0) / 2;  // equilateral rings
+  const int rings = std::max(2, static_cast<int>(std::lround(length / spacing)) + 1);
+  Mesh m;
+  for (int k = 0; k < rings; ++k)
+    for (int j = 0; j < around; ++j) {
+      const double angle = (j + 0.5 * (k % 2)) * step;
+      m.vertices.emplace_back(std::cos(angle), std::sin(angle), length * k / (rings - 1));
+    }
+  auto at = [around](int k, int j) { return k * around + (j % around + around) % around; };
+  for (int k = 0; k + 1 < rings; ++k)
+    for (int j = 0; j < around; ++j) {
+      // the vertex of ring k + 1 between (k, j) and (k, j + 1): even rings are at whole steps
+      const int up = j + k % 2;
+      m.faces.push_back({at(k, j), at(k, j + 1), at(k + 1, up)});
+      m.faces.push_back({at(k, j), at(k + 1, up), at(k + 1, up - 1)});
+    }
+  const int bottom = static_cast<int>(m.vertices.size());
+  m.vertices.emplace_back(0, 0, -spacing / 2);
+  const int top = bottom + 1;
+  m.vertices.emplace_back(0, 0, length + spacing / 2);
+  for (int j = 0; j < around; ++j) {
+    m.faces.push_back({bottom, at(0, j + 1), at(0, j)});
+    m.faces.push_back({top, at(rings - 1, j), at(rings - 1, j + 1)});
+  }
+  return m;
+}
+
 Mesh bumpy_sphere(int level, int bumps, double amplitude, unsigned seed) {
   Mesh m = icosphere(level);
   std::mt19937 rng(seed);

@@ -18,4 +18,9 @@ Mesh bumpy_sphere(int level, int bumps, double amplitude, unsigned seed);
 /// gets a point 1e-5 of its height inside its first edge (a flat sliver). The icosphere's
 /// vertices come first.
 Mesh sliver_sphere(int level);
+/// A closed tube along z of radius 1 and length `length` (the `tubes` case of
+/// scripts/hard_meshes.py in its simplest form): rings of `around` vertices, each turned by half
+/// a step from the last, about equilateral triangles between them, and each end closed by a fan
+/// around one apex vertex half a ring spacing beyond it. Outward oriented.
+Mesh capsule(int around, double length);
 }  // namespace sphparam::test
