@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Generates the hard inputs of sdot-sphere-param (docs/spherical_parameterization.md, "Hard shapes").
 
-    /usr/bin/python3 scripts/hard_meshes.py OUTDIR [--cases tubes spiky folds slivers]
+    /usr/bin/python3 scripts/hard_meshes.py OUTDIR [--cases tubes capsule spiky folds slivers]
                                            [--sizes 25000 60000 120000] [--seed 1]
 
 Writes OUTDIR/CASE_SIZEk.off for every case and size: closed, genus-0, manifold, outward-oriented
@@ -16,6 +16,9 @@ depend on SIZE, only its resolution does). Every case is deterministic (fixed se
            so embedded and genus 0)
   folds    a cortex-like surface: r = 1 + 0.12 tanh(4 g) with g a domain-warped product of sines
            of frequency 18: folds about 0.17 wide and 0.24 deep (star-shaped)
+  capsule  one closed tube whose length is 300 times its radius (3 times the ratio of the tubes
+           case): rings of vertices, each turned by half a step from the last, about
+           equilateral triangles, and each end closed by a fan around one apex vertex
   slivers  an icosphere whose edges are split, a fifth of them at 1e-3 of their length from an
            end (neighbouring faces with 1000:1 area ratios) and a fifth at 2.5e-5 (0.001 degree
            needles), and a tenth of its faces split by a point 1e-5 of the face's height from an
@@ -171,6 +174,34 @@ def slivers(size, seed):
         new_faces += [(a, b, p), (b, c, p), (c, a, p)]
     faces = [t for t, keep in zip(faces, alive) if keep] + new_faces
     return np.array(vertices), np.array(faces)
+
+
+# ------------------------------------------------------------------------------------- capsule
+def capsule(size, seed, ratio=300.0):
+    """A tube of radius 1 and length `ratio` with about `size` vertices (seed unused: no randomness)."""
+    # V = around * rings with rings = ratio / spacing, spacing = 2 sin(pi/around) sqrt(3)/2 ~ pi sqrt(3)/around
+    around = max(6, round(math.sqrt(size * math.pi * math.sqrt(3) / ratio)))
+    step = 2 * math.pi / around
+    spacing = 2 * math.sin(step / 2) * math.sqrt(3) / 2
+    rings = max(2, round(ratio / spacing) + 1)
+    k, j = np.meshgrid(np.arange(rings), np.arange(around), indexing='ij')
+    angle = (j + 0.5 * (k % 2)) * step
+    v = np.stack([np.cos(angle), np.sin(angle), ratio * k / (rings - 1)], axis=-1).reshape(-1, 3)
+
+    def at(kk, jj):
+        return kk * around + jj % around
+
+    kk, jj = np.meshgrid(np.arange(rings - 1), np.arange(around), indexing='ij')
+    kk, jj = kk.ravel(), jj.ravel()
+    up = jj + kk % 2  # the vertex of ring k + 1 between (k, j) and (k, j + 1)
+    sides = np.concatenate([np.stack([at(kk, jj), at(kk, jj + 1), at(kk + 1, up)], axis=1),
+                            np.stack([at(kk, jj), at(kk + 1, up), at(kk + 1, up - 1)], axis=1)])
+    bottom, top = len(v), len(v) + 1
+    v = np.vstack([v, [[0, 0, -spacing / 2], [0, 0, ratio + spacing / 2]]])
+    ring = np.arange(around)
+    caps = np.concatenate([np.stack([np.full(around, bottom), at(0, ring + 1), at(0, ring)], axis=1),
+                           np.stack([np.full(around, top), at(rings - 1, ring), at(rings - 1, ring + 1)], axis=1)])
+    return v, np.concatenate([sides, caps])
 
 
 # --------------------------------------------------------------------------------- tubes body
@@ -450,7 +481,7 @@ def write_off(path, v, f):
         np.savetxt(out, np.concatenate([np.full((len(f), 1), 3), f], axis=1), fmt='%d')
 
 
-CASES = {'tubes': tubes, 'spiky': spiky, 'folds': folds, 'slivers': slivers}
+CASES = {'tubes': tubes, 'capsule': capsule, 'spiky': spiky, 'folds': folds, 'slivers': slivers}
 
 
 def main():

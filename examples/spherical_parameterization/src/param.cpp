@@ -1140,7 +1140,7 @@ std::vector<Vec3> hierarchical_sphere_map(const Mesh& mesh, std::size_t base_ver
   // vertex's share to the vertex it goes into, so that a coarse vertex carries the area of all
   // that was collapsed into it. The coarse meshes' own face areas would not do: the collapses
   // shorten the tubes, whose coarse faces then stand for far more surface than they have
-  // (tubes_25k: area mean|d| of the coarse-to-fine map 2.34 with those, 0.84 with these).
+  // (tubes_25k: final area mean|d| 0.560 with those, 0.313 with these).
   std::vector<double> mass = vertex_targets(mesh, face_targets(mesh, {}));
   while (alive_count > base_vertices) {
     for (auto& n : nbrs) n.clear();
@@ -1224,12 +1224,20 @@ std::vector<Vec3> hierarchical_sphere_map(const Mesh& mesh, std::size_t base_ver
     const Mesh base = compact_mesh(mesh, faces, global_of, local_of);
     const Topology base_topo(base);
     const auto base_targets = face_targets(base, {});
-    // uniform weights: the collapsed mesh's triangles are far from its surface's shape, and
-    // their clamped cotangents span orders of magnitude. No stretch reweighting: on tubes_25k's
-    // 39-vertex base it inverted 6 faces, from which 5,149 vertices found no place when put back
-    // (8,807 inverted faces in the end); without it 2, which the first insertions split, and
-    // every vertex finds its place.
-    const std::vector<Vec3> base_map = tutte_sphere_map(base, base_topo, base_targets, 0, nullptr, nullptr, true);
+    std::vector<Vec3> base_map;
+    if (base.vertices.size() == 4) {
+      // A tetrahedron (the collapses went all the way): the regular one, oriented like the mesh.
+      // Tutte's map of it puts the outer face on a hemisphere, a degenerate face on which the
+      // inversion-free optimization and insertions are stuck.
+      base_map = {Vec3(1, 1, 1).normalized(), Vec3(1, -1, -1).normalized(), Vec3(-1, 1, -1).normalized(),
+                  Vec3(-1, -1, 1).normalized()};
+      if (count_flips(base, base_map) > 0) std::swap(base_map[0], base_map[1]);
+    } else {
+      // uniform weights: the collapsed mesh's triangles are far from its surface's shape, and
+      // their clamped cotangents span orders of magnitude; no stretch reweighting, which inverts
+      // more of the base's faces
+      base_map = tutte_sphere_map(base, base_topo, base_targets, 0, nullptr, nullptr, true);
+    }
     for (std::size_t i = 0; i < global_of.size(); ++i) s[u(global_of[i])] = base_map[i];
     if (info) info->base_vertices = global_of.size(), info->base_flips = count_flips(base, base_map);
     relax(faces, 50);
@@ -1297,10 +1305,7 @@ std::vector<Vec3> hierarchical_sphere_map(const Mesh& mesh, std::size_t base_ver
         ++info->unplaced;
       }
     }
-    // 30 sweeps, not 4: every level's areas are then about as good as the optimization gets them
-    // (tubes_25k: area mean|d| 2.34 with 4, 0.84 with 30, 0.83 with 300 on levels under 5,000
-    // faces; the map in 1.1 s and 1.4 s)
-    relax(level.faces, 30);
+    relax(level.faces, 4);
   }
   if (info) info->levels = static_cast<int>(levels.size());
   return s;
