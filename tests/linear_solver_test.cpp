@@ -162,16 +162,22 @@ TEST(Multigrid, ReportsBadMatricesAndTheIterationLimit) {
   EXPECT_EQ(multigrid.info(), Eigen::InvalidInput);
 }
 
+/// Builds the hierarchy of `matrix` and solves with it to 1e-10 (so that the next compute() of a
+/// matrix of its size reuses it).
+void build_and_solve(sdot::MultigridSolver& multigrid, const sdot::SparseMatrix& matrix, const Eigen::VectorXd& rhs) {
+  multigrid.setTolerance(1e-10);
+  multigrid.compute(matrix);
+  (void)multigrid.solve(rhs);
+  ASSERT_EQ(multigrid.info(), Eigen::Success);
+}
+
 TEST(Multigrid, ABadMatrixAfterAGoodOneIsRejectedAndTheNextGoodOneSolved) {
   // The finest level of a built hierarchy is overwritten in place by the next matrix of its
   // size: a bad one must not leave a half-replaced hierarchy behind.
   const sdot::SparseMatrix good = weighted_laplacian(60, 11);
   const Eigen::VectorXd rhs = zero_sum_rhs(good.rows(), 12);
   sdot::MultigridSolver multigrid;
-  multigrid.setTolerance(1e-10);
-  multigrid.compute(good);
-  (void)multigrid.solve(rhs);
-  ASSERT_EQ(multigrid.info(), Eigen::Success);
+  ASSERT_NO_FATAL_FAILURE(build_and_solve(multigrid, good, rhs));
   sdot::SparseMatrix bad = good;
   bad.coeffRef(40, 40) = -1;
   multigrid.compute(bad);
@@ -217,10 +223,7 @@ TEST(Multigrid, ReusesItsHierarchyForTheNextNewtonMatrix) {
   const sdot::SparseMatrix first = weighted_laplacian(120, 1);
   const Eigen::VectorXd rhs = zero_sum_rhs(first.rows(), 2);
   sdot::MultigridSolver multigrid;
-  multigrid.setTolerance(1e-10);
-  multigrid.compute(first);
-  (void)multigrid.solve(rhs);
-  ASSERT_EQ(multigrid.info(), Eigen::Success);
+  ASSERT_NO_FATAL_FAILURE(build_and_solve(multigrid, first, rhs));
   const int fresh_iterations = multigrid.iterations();
   // The next Newton matrix: the same graph, weights a few percent off. The coarse levels stay.
   sdot::SparseMatrix next = first;
