@@ -1223,7 +1223,6 @@ std::vector<Vec3> hierarchical_sphere_map(const Mesh& mesh, std::size_t base_ver
   {
     const Mesh base = compact_mesh(mesh, faces, global_of, local_of);
     const Topology base_topo(base);
-    const auto base_targets = face_targets(base, {});
     std::vector<Vec3> base_map;
     if (base.vertices.size() == 4) {
       // A tetrahedron (the collapses went all the way): the regular one, oriented like the mesh.
@@ -1236,7 +1235,7 @@ std::vector<Vec3> hierarchical_sphere_map(const Mesh& mesh, std::size_t base_ver
       // uniform weights: the collapsed mesh's triangles are far from its surface's shape, and
       // their clamped cotangents span orders of magnitude; no stretch reweighting, which inverts
       // more of the base's faces
-      base_map = tutte_sphere_map(base, base_topo, base_targets, 0, nullptr, nullptr, true);
+      base_map = tutte_sphere_map(base, base_topo, {}, 0, nullptr, nullptr, true);
     }
     for (std::size_t i = 0; i < global_of.size(); ++i) s[u(global_of[i])] = base_map[i];
     if (info) info->base_vertices = global_of.size(), info->base_flips = count_flips(base, base_map);

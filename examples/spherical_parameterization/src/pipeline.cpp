@@ -344,7 +344,7 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
   // tubes), where the OT cells are not: their centroids folded 17,376 of tubes_25k's 49,520
   // faces, and 166 were left after the untangling, the rerun with finer Diracs and the Laplacian
   // rounds (33 s).
-  if (R.fallbacks.hierarchical_initial_map > 0 && count_flips(mesh, s) == 0) {
+  if (R.fallbacks.hierarchical_initial_map > 0 && R.stages.back().flips == 0) {  // the initial map's record
     R.ot.status = "skipped";
     R.ot.message = "the coarse-to-fine initial map is flip-free and area-corrected";
     record("ot_centroids", since(t), s, "OT skipped: coarse-to-fine start");
