@@ -60,7 +60,8 @@ struct StageRecord {
 };
 
 struct OtRecord {
-  std::string status = "not run";  ///< converged, precision_floor, iteration_limit, failed, unavailable
+  std::string status = "not run";  ///< converged, precision_floor, iteration_limit, failed, unavailable, skipped (after
+                                   ///< a flip-free coarse-to-fine map)
   std::string message;
   int iterations = 0;
   double max_relative_error = 0;
