@@ -44,9 +44,11 @@ std::vector<double> vertex_targets(const Mesh& mesh, const std::vector<double>& 
 /// across, far below what points on the unit sphere resolve. With `crushed`, the reweighting stops early when
 /// four reweightings gain less than 0.25 on that quantile; `crushed` then says that the map is
 /// still crushed (with --coarse-to-fine the pipeline then uses hierarchical_sphere_map). It
-/// also stops so, with or without `crushed`, when that quantile is below rounding (faces of area
-/// under 1e-28 on the unit sphere, whose vertices coincide there); `crushed_below_rounding` then
-/// says so (the pipeline then always uses hierarchical_sphere_map). `uniform_weights`: all edge
+/// also stops so, with or without `crushed`, when the map is below rounding: that quantile's
+/// faces under 1e-28 in area on the unit sphere (their vertices coincide there), or more than 1 %
+/// of the faces flipped on the sphere (the planar map has none: their vertices were rounded
+/// together); `crushed_below_rounding` then says so (the pipeline then always uses
+/// hierarchical_sphere_map). `uniform_weights`: all edge
 /// weights 1 instead of the clamped cotangents.
 std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets = {},
                                    int max_reweightings = 0, int* reweightings = nullptr, bool* crushed = nullptr,
