@@ -67,14 +67,19 @@ using ConjugateGradientSolver = Eigen::ConjugateGradient<SparseMatrix, Eigen::Lo
 using CholmodSolver = Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower>;
 
 namespace detail {
+/// Sets OpenBLAS's thread count when the BLAS in use is OpenBLAS (looked up at run time, no link
+/// dependency); does nothing otherwise.
+inline void set_blas_threads(int threads) {
+  using SetThreads = void (*)(int);
+  if (auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) set(threads);
+}
 /// CHOLMOD's dense kernels run in the BLAS. A multithreaded OpenBLAS keeps its threads spinning
 /// after each call, which slowed sdot's own OpenMP loops by ~10 % (sphere diagrams at 10⁵ sites,
 /// 2.5 → 2.8 s); one BLAS thread was faster overall. Applied once, only when the BLAS in use is
 /// OpenBLAS (looked up at run time, no link dependency).
 inline void use_single_threaded_blas() {
   static const bool done = [] {
-    using SetThreads = void (*)(int);
-    if (auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) set(1);
+    set_blas_threads(1);
     return true;
   }();
   (void)done;

@@ -20,6 +20,7 @@
 #include "pipeline.hpp"
 #include "report.hpp"
 #include "run.hpp"
+#include "sdot/linear_solver.hpp"
 #include "sub_resolution.hpp"
 #include "support/scratch_directory.hpp"
 #include "test_meshes.hpp"
@@ -457,6 +458,23 @@ double crushed_quantile(const Mesh& m, const std::vector<Vec3>& s, const std::ve
   return logs[logs.size() / 200];
 }
 }  // namespace
+
+TEST(Stages, TutteMapIsTheSameWhateverTheCallersBlasThreads) {
+  // CHOLMOD's path (from cholmod_from_unknowns) runs its supernodes in the BLAS, whose rounding
+  // depends on its thread count: the map must not depend on what the caller set.
+  const Mesh m = test::ellipsoid(7, 1, 1.5, 3);
+  ASSERT_GE(static_cast<long>(m.vertices.size()), cholmod_from_unknowns + 3);
+  const Topology topo(m);
+  sdot::detail::set_blas_threads(1);
+  const auto one = tutte_sphere_map(m, topo);
+  sdot::detail::set_blas_threads(3);
+  const auto three = tutte_sphere_map(m, topo);
+  sdot::detail::set_blas_threads(1);
+  ASSERT_EQ(one.size(), three.size());
+  std::size_t different = 0;
+  for (std::size_t i = 0; i < one.size(); ++i) different += one[i] != three[i];
+  EXPECT_EQ(different, 0u);
+}
 
 TEST(Stages, StretchReweightingOpensCrushedSpikes) {
   // Long thin spikes: the harmonic (Tutte) map crushes them exponentially in their length.
