@@ -21,6 +21,9 @@
 namespace sphparam {
 namespace {
 
+inline std::size_t u(std::ptrdiff_t i) {
+  return static_cast<std::size_t>(i);
+}
 inline std::size_t u(int i) {
   return static_cast<std::size_t>(i);
 }
@@ -863,8 +866,11 @@ struct Corner {
 /// Corners of every vertex, in the order of topo.vfaces (CSR offsets topo.face_offsets).
 std::vector<Corner> corner_table(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets) {
   std::vector<Corner> corners(topo.vfaces.size());
-  for (std::size_t i = 0; i + 1 < topo.face_offsets.size(); ++i)
-    for (int q = topo.face_offsets[i]; q < topo.face_offsets[i + 1]; ++q) {
+  const auto nv = static_cast<std::ptrdiff_t>(topo.face_offsets.size()) - 1;
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t vertex = 0; vertex < nv; ++vertex)
+    for (int q = topo.face_offsets[u(vertex)]; q < topo.face_offsets[u(vertex) + 1]; ++q) {
+      const auto i = u(vertex);
       const int f = topo.vfaces[u(q)];
       const auto& t = mesh.faces[u(f)];
       const int c = t[0] == static_cast<int>(i) ? 0 : (t[1] == static_cast<int>(i) ? 1 : 2);
@@ -971,27 +977,54 @@ int sweep_limit(const OptimizeOptions& options) {
   return options.angle_weight > default_angle_weight ? 2000 : 200;
 }
 
+struct AreaOptimizer::Tables {
+  std::vector<Corner> corners;
+  std::vector<std::vector<int>> colours;
+};
+
+AreaOptimizer::AreaOptimizer(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets)
+    : mesh_(mesh),
+      topo_(topo),
+      targets_(targets),
+      tables_(new Tables{corner_table(mesh, topo, targets), colour_classes(topo, mesh.vertices.size())}) {}
+
+AreaOptimizer::~AreaOptimizer() = default;
+
 OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets,
                              std::vector<Vec3>& s, const OptimizeOptions& options) {
+  return AreaOptimizer(mesh, topo, targets).run(s, options);
+}
+
+OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& options) const {
   if (!(std::isfinite(options.angle_weight) && options.angle_weight >= 0))
     throw std::invalid_argument("angle_weight: must be a finite number >= 0, got " +
                                 std::to_string(options.angle_weight));
+  if (s.size() != mesh_.vertices.size())
+    throw std::invalid_argument("positions: " + std::to_string(s.size()) + " for a mesh of " +
+                                std::to_string(mesh_.vertices.size()) + " vertices");
+  const Mesh& mesh = mesh_;
+  const Topology& topo = topo_;
+  const std::vector<double>& targets = targets_;
   const auto start = std::chrono::steady_clock::now();
   const std::size_t nv = s.size();
-  const std::vector<Corner> corners = corner_table(mesh, topo, targets);
+  const std::vector<Corner>& corners = tables_->corners;
+  // The faces' terms in parallel, summed in face order: the same bits on any thread count.
+  std::vector<double> face_energy(mesh.faces.size());
   auto total_energy = [&] {
-    double E = 0;
-    for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
-      const auto& t = mesh.faces[f];
+    const auto nf = static_cast<std::ptrdiff_t>(mesh.faces.size());
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t f = 0; f < nf; ++f) {
+      const auto& t = mesh.faces[u(f)];
       const double A = signed_spherical_triangle_area(s[u(t[0])], s[u(t[1])], s[u(t[2])]);
-      const double T = targets[f];
+      const double T = targets[u(f)];
       const double Ae = options.regularization > 0
                             ? 0.5 * (A + std::sqrt(A * A + 4 * options.regularization * options.regularization * T * T))
                             : A;
-      if (!(Ae > 0)) return std::numeric_limits<double>::infinity();
       const double r = std::log(Ae / T);
-      E += r * r;
+      face_energy[u(f)] = Ae > 0 ? r * r : std::numeric_limits<double>::infinity();
     }
+    double E = 0;
+    for (double e : face_energy) E += e;
     return E;
   };
   OptimizeResult result;
@@ -1005,7 +1038,7 @@ OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::
   // Gauss–Seidel, one colour class at a time: vertices of one colour share no face, so their
   // moves are independent and run in parallel. Small classes run serially: a parallel region per
   // class and sweep costs more than it saves there, and much more when the machine is loaded.
-  const std::vector<std::vector<int>> colours = colour_classes(topo, nv);
+  const std::vector<std::vector<int>>& colours = tables_->colours;
   const int max_sweeps = sweep_limit(options);
   for (int sweep = 0; sweep < max_sweeps; ++sweep) {
     std::size_t visited = 0;

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -163,6 +164,26 @@ struct OptimizeResult {
 /// With `regularization` ε > 0 it is the untangling variant: areas regularised, inversions allowed.
 OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets,
                              std::vector<Vec3>& s, const OptimizeOptions& options = {});
+
+/// optimize_area for repeated calls on one mesh with one set of targets: its per-vertex tables
+/// (each vertex's faces with their targets and cotangents, and the vertex colouring) are built
+/// once instead of at every call (spiky_120k: 22 ms a call, 7 calls). `mesh`, `topo` and
+/// `targets` must outlive it. The results are those of optimize_area, bit for bit.
+class AreaOptimizer {
+ public:
+  AreaOptimizer(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets);
+  ~AreaOptimizer();
+  AreaOptimizer(const AreaOptimizer&) = delete;
+  AreaOptimizer& operator=(const AreaOptimizer&) = delete;
+  OptimizeResult run(std::vector<Vec3>& s, const OptimizeOptions& options = {}) const;
+
+ private:
+  struct Tables;
+  const Mesh& mesh_;
+  const Topology& topo_;
+  const std::vector<double>& targets_;
+  std::unique_ptr<Tables> tables_;
+};
 
 /// 1-to-4 subdivision (edge midpoints): the refined mesh keeps the original vertices first.
 Mesh subdivide(const Mesh& mesh);

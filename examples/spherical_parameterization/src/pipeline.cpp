@@ -308,6 +308,12 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
   auto say = [&](const std::string& s) { say_progress(options, s); };
   const Topology topo(mesh);
   const auto targets = face_targets(mesh, options.vertex_factors);
+  // built at its first use, then shared by the untangling's calls and the final optimization
+  std::optional<AreaOptimizer> area_optimizer;
+  auto optimizer = [&]() -> const AreaOptimizer& {
+    if (!area_optimizer) area_optimizer.emplace(mesh, topo, targets);
+    return *area_optimizer;
+  };
   const auto masses = vertex_targets(mesh, targets);
   auto record = [&](const std::string& name, double seconds, const std::vector<Vec3>& s, std::string note = "") {
     record_stage(R, mesh, targets, s, options, name, seconds, std::move(note));
@@ -450,7 +456,7 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
           int sweeps = 0;
           for (int chunk = 0; chunk < 6 && flips > 0; ++chunk) {
             if (local_untangling) uo.start_active = near_flipped_faces(mesh, topo, s, 4);
-            sweeps += optimize_area(mesh, topo, targets, s, uo).sweeps;
+            sweeps += optimizer().run(s, uo).sweeps;
             flips = count_flips(mesh, s);
           }
           say("  untangling, eps " + fmt_g(eps) + ": " + std::to_string(sweeps) + " sweeps, " + std::to_string(flips) +
@@ -502,7 +508,7 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
         uo.activity_threshold = 1e-5;
         for (double eps : {1e-2, 1e-3, 1e-4, 1e-5}) {
           uo.regularization = eps;
-          optimize_area(mesh, topo, targets, s, uo);
+          optimizer().run(s, uo);
           if (count_flips(mesh, s) == 0) break;
         }
         R.untangle_remaining = count_flips(mesh, s);
@@ -521,7 +527,7 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
           uo.activity_threshold = 1e-5;
           for (double eps : {1e-3, 1e-4, 1e-5}) {
             uo.regularization = eps;
-            optimize_area(mesh, topo, targets, repaired, uo);
+            optimizer().run(repaired, uo);
           }
           if (count_flips(mesh, repaired) == 0) s = std::move(repaired);
         }
@@ -539,7 +545,7 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
   // 5. Flip-free area-correcting optimization.
   if (options.optimize && R.untangle_remaining == 0) {
     t = Clock::now();
-    R.optimizer = optimize_area(mesh, topo, targets, s, options.optimizer);
+    R.optimizer = optimizer().run(s, options.optimizer);
     record("area_optimization", since(t), s, std::to_string(R.optimizer.sweeps) + " sweeps");
   }
   R.sphere = std::move(s);

@@ -639,6 +639,42 @@ TEST(AngleWeight, InvalidWeightIsRejected) {
   }
 }
 
+TEST(AreaOptimizer, RepeatedRunsMatchOptimizeAreaAndCheckThePositions) {
+  // as in the pipeline: regularised runs from a folded start (the untangling's chunks), then
+  // flip-free runs, all on one optimizer
+  const Mesh m = test::ellipsoid(3, 1, 1.3, 2);
+  const Topology topo(m);
+  const std::vector<double> targets = face_targets(m, {});
+  std::vector<Vec3> tutte = tutte_sphere_map(m, topo, targets, 0);
+  mobius_balance(tutte, vertex_targets(m, targets));
+  ASSERT_EQ(count_flips(m, tutte), 0u);
+  std::vector<Vec3> folded = tutte;
+  for (std::size_t i = 0; i < folded.size(); i += 7) folded[i] = (folded[i] + Vec3(0.3, -0.2, 0.1)).normalized();
+  ASSERT_GT(count_flips(m, folded), 0u);
+  const AreaOptimizer optimizer(m, topo, targets);
+  for (const bool untangling : {true, false}) {
+    std::vector<Vec3> once = untangling ? folded : tutte, shared = once;
+    OptimizeOptions o;
+    o.max_sweeps = 5;
+    if (untangling) o.angle_weight = 0, o.regularization = 0.1;
+    for (int chunk = 0; chunk < 2; ++chunk) {
+      const auto a = optimize_area(m, topo, targets, once, o);
+      const auto b = optimizer.run(shared, o);
+      EXPECT_EQ(a.visits, b.visits);
+      EXPECT_EQ(a.energy_end, b.energy_end);
+      EXPECT_LT(b.energy_end, b.energy_start);
+    }
+    EXPECT_EQ(once, shared) << "untangling " << untangling;  // bit for bit
+  }
+  std::vector<Vec3> short_positions(m.vertices.size() - 1, Vec3::UnitZ());
+  try {
+    optimizer.run(short_positions);
+    ADD_FAILURE() << "a position array of the wrong size accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("positions"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Stages, SubdivideKeepsOriginalVerticesFirst) {
   const Mesh m = test::icosphere(1);
   const Mesh f = subdivide(m);
