@@ -868,9 +868,9 @@ std::vector<Corner> corner_table(const Mesh& mesh, const Topology& topo, const s
   std::vector<Corner> corners(topo.vfaces.size());
   const auto nv = static_cast<std::ptrdiff_t>(topo.face_offsets.size()) - 1;
 #pragma omp parallel for schedule(static)
-  for (std::ptrdiff_t vertex = 0; vertex < nv; ++vertex)
-    for (int q = topo.face_offsets[u(vertex)]; q < topo.face_offsets[u(vertex) + 1]; ++q) {
-      const auto i = u(vertex);
+  for (std::ptrdiff_t vertex = 0; vertex < nv; ++vertex) {
+    const auto i = u(vertex);
+    for (int q = topo.face_offsets[i]; q < topo.face_offsets[i + 1]; ++q) {
       const int f = topo.vfaces[u(q)];
       const auto& t = mesh.faces[u(f)];
       const int c = t[0] == static_cast<int>(i) ? 0 : (t[1] == static_cast<int>(i) ? 1 : 2);
@@ -878,6 +878,7 @@ std::vector<Corner> corner_table(const Mesh& mesh, const Topology& topo, const s
       const Vec3 &pi = mesh.vertices[i], &pj = mesh.vertices[u(j)], &pk = mesh.vertices[u(k)];
       corners[u(q)] = {j, k, targets[u(f)], cot_angle(pi, pj, pk), cot_angle(pj, pk, pi), cot_angle(pk, pi, pj)};
     }
+  }
   return corners;
 }
 
@@ -986,7 +987,8 @@ AreaOptimizer::AreaOptimizer(const Mesh& mesh, const Topology& topo, const std::
     : mesh_(mesh),
       topo_(topo),
       targets_(targets),
-      tables_(new Tables{corner_table(mesh, topo, targets), colour_classes(topo, mesh.vertices.size())}) {}
+      tables_(std::make_unique<Tables>(
+          Tables{corner_table(mesh, topo, targets), colour_classes(topo, mesh.vertices.size())})) {}
 
 AreaOptimizer::~AreaOptimizer() = default;
 

@@ -49,8 +49,8 @@ std::vector<double> vertex_targets(const Mesh& mesh, const std::vector<double>& 
 /// faces under 1e-28 in area on the unit sphere (their vertices coincide there), or more than 1 %
 /// of the faces flipped on the sphere (the planar map has none: their vertices were rounded
 /// together); `crushed_below_rounding` then says so (the pipeline then always uses
-/// hierarchical_sphere_map). `uniform_weights`: all edge
-/// weights 1 instead of the clamped cotangents.
+/// hierarchical_sphere_map). `uniform_weights`: all edge weights 1 instead of the clamped
+/// cotangents.
 std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets = {},
                                    int max_reweightings = 0, int* reweightings = nullptr, bool* crushed = nullptr,
                                    bool uniform_weights = false, bool* crushed_below_rounding = nullptr);
