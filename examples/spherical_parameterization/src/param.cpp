@@ -447,8 +447,8 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
     // of their targets; cow_igl, the most crushed shared mesh, at e^-10.8).
     // The planar map is an embedding, so a face flipped on the sphere is one whose vertices the
     // projection rounded together: more than 1 % of them and the OT cannot separate the sites
-    // either (a capsule 60 radii long, 25k vertices: 13 % at the stall, then through the OT 29 s,
-    // 1,084 fallbacks and area mean|d| 0.45; at 5k vertices 58 faces left flipped. cow_igl, the
+    // either (a capsule 60 radii long, 25k vertices: 13 % at the stall, then through the OT 28 s,
+    // 1,085 fallbacks and area mean|d| 0.44; at 5k vertices 57 faces left flipped. cow_igl, the
     // most crushed shared mesh: 0.14 %).
     below_rounding =
         sorted[q] + std::log(4 * M_PI / static_cast<double>(nf)) < std::log(1e-28) || sphere_flips * 100 > nf;
