@@ -177,7 +177,6 @@ class LaplacianSolver {
       // thread count, so a fixed count keeps the map the same bit for bit everywhere
       // (spiky_120k: 3 factorisations 1.78 s -> 1.28 s). One again afterwards, as sdot's
       // solvers expect (linear_solver.hpp, use_single_threaded_blas).
-      sdot::detail::use_single_threaded_blas();
       sdot::detail::set_blas_threads(2);
       if (!common_started_) {
         cholmod_start(&common_);
