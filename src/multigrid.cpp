@@ -194,12 +194,13 @@ RowMatrix product(const RowMatrix& a, const RowMatrix& b) {
 }
 
 struct Level {
-  RowMatrix matrix;                  // A (symmetric); kept on the finest level only, once built
-  SingleRows single;                 // A in single precision, for the V-cycle
-  Eigen::VectorXd diagonal;          // a_ii
-  Eigen::VectorXd smoother_inverse;  // 1 / the divisors of smoother_diagonal()
-  SingleRows prolongation;           // P: this level's unknowns from the next level's
-  SingleRows restriction;            // Pᵀ
+  RowMatrix matrix;                           // A (symmetric); kept on the finest level only, once built
+  SingleRows single;                          // A in single precision, for the V-cycle
+  Eigen::VectorXd diagonal;                   // a_ii
+  Eigen::VectorXd smoother_inverse;           // 1 / the divisors of smoother_diagonal()
+  std::vector<unsigned char> crosses_blocks;  // 1 for rows with entries in other smoother blocks
+  SingleRows prolongation;                    // P: this level's unknowns from the next level's
+  SingleRows restriction;                     // Pᵀ
   mutable Eigen::VectorXd rhs, x, residual, previous;
 };
 
@@ -341,6 +342,7 @@ void gauss_seidel(const Level& level, bool forward, bool from_zero) {
   const int* start = a.starts();
   const int* column = a.columns();
   const float* value = a.value.data();
+  const unsigned char* crosses = level.crosses_blocks.data();
   const int blocks = (n + block_rows - 1) / block_rows;
   if (blocks > 1) {
     if (from_zero)
@@ -355,9 +357,13 @@ void gauss_seidel(const Level& level, bool forward, bool from_zero) {
       const int i = forward ? step : first + last - 1 - step;
       // x_i += r_i / d_i: with d_i = a_ii this is x_i = (b_i − Σ_{j≠i} a_ij x_j) / a_ii.
       double residual = level.rhs[i];
-      for (int k = start[i]; k < start[i + 1]; ++k) {
-        const int j = column[k];
-        residual -= double(value[k]) * (blocks == 1 || (j >= first && j < last) ? level.x[j] : level.previous[j]);
+      if (!crosses[i]) {  // most rows: no test per entry
+        for (int k = start[i]; k < start[i + 1]; ++k) residual -= double(value[k]) * level.x[column[k]];
+      } else {
+        for (int k = start[i]; k < start[i + 1]; ++k) {
+          const int j = column[k];
+          residual -= double(value[k]) * (j >= first && j < last ? level.x[j] : level.previous[j]);
+        }
       }
       // A product, not a division: the next row waits for this x_i.
       level.x[i] += residual * level.smoother_inverse[i];
@@ -369,13 +375,17 @@ void gauss_seidel(const Level& level, bool forward, bool from_zero) {
 /// other blocks (the "ℓ1" smoother of Baker, Falgout, Kolev and Yang, 2011). Plain a_ii would
 /// treat those entries like undamped Jacobi, which diverges where they dominate a row; with the
 /// ℓ1 term every sweep reduces the error in the energy norm. With a single block, a_ii.
-Eigen::VectorXd smoother_diagonal(const RowMatrix& a, const Eigen::VectorXd& diagonal) {
+/// `crosses_blocks` gets 1 for the rows with such entries (none with a single block).
+Eigen::VectorXd smoother_diagonal(const RowMatrix& a, const Eigen::VectorXd& diagonal,
+                                  std::vector<unsigned char>& crosses_blocks) {
   Eigen::VectorXd result = diagonal;
+  crosses_blocks.assign(at(a.rows), 0);
+  if (a.rows <= block_rows) return result;
   for_each_block(a.rows, [&](Eigen::Index first_row, Eigen::Index last_row) {
     for (auto i = int(first_row); i < int(last_row); ++i) {
       const int first = i / block_rows * block_rows, last = first + block_rows;
       for (std::size_t k = a.row_begin(i); k < a.row_end(i); ++k)
-        if (a.column[k] < first || a.column[k] >= last) result[i] += std::abs(a.value[k]);
+        if (a.column[k] < first || a.column[k] >= last) result[i] += std::abs(a.value[k]), crosses_blocks[at(i)] = 1;
     }
   });
   return result;
@@ -471,7 +481,7 @@ void MultigridSolver::compute(const SparseMatrix& matrix) {
       h.info = Eigen::NumericalIssue;
       return;
     }
-    finest.smoother_inverse = smoother_diagonal(finest.matrix, finest.diagonal).cwiseInverse();
+    finest.smoother_inverse = smoother_diagonal(finest.matrix, finest.diagonal, finest.crosses_blocks).cwiseInverse();
     share_as_single(finest.matrix, finest.single);
     h.reused = true;
     return;
@@ -500,7 +510,7 @@ void MultigridSolver::Hierarchy::build(RowMatrix finest_matrix, const Settings& 
       info = Eigen::NumericalIssue;
       return;
     }
-    level.smoother_inverse = smoother_diagonal(level.matrix, level.diagonal).cwiseInverse();
+    level.smoother_inverse = smoother_diagonal(level.matrix, level.diagonal, level.crosses_blocks).cwiseInverse();
     const int n = level.matrix.rows;
     level.rhs.resize(n), level.x.resize(n), level.residual.resize(n);
     if (n <= settings.coarse_size || static_cast<int>(levels.size()) >= settings.max_levels) break;
