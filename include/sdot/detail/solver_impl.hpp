@@ -835,9 +835,9 @@ sdot::Result<typename G::Point> sdot::solve_with(const G& geometry, const D& den
   result.weights.resize(n), result.masses.resize(n), result.target_masses.resize(n);
   result.centroids.resize(sites.size());
   result.diagram.cells.resize(sites.size());
+  // `order` is a permutation, so the loop below writes disjoint entries, on both cores (sphere,
+  // 10⁵ sites: 9 ms on one).
   if (local.ball_radii.size() == n) result.ball_radii.resize(n);
-    // `order` is a permutation, so the iterations write disjoint entries (sphere, 10⁵ sites: 9 ms
-    // on one thread).
 #pragma omp parallel for schedule(static) if (n >= 4096)
   for (Eigen::Index k = 0; k < n; ++k) {
     const Eigen::Index i = order[static_cast<std::size_t>(k)];
