@@ -195,6 +195,20 @@ SolveOutput solve_problem(const G& geometry, const std::optional<PiecewiseDensit
   return output;
 }
 
+/// Sites from which the command has glibc map arrays of 1 MB and more straight from the system
+/// (see use_malloc_policy_for).
+inline constexpr std::size_t large_problem_sites = 500'000;
+
+/// The M_MMAP_THRESHOLD the command sets for a problem of `sites` sites, in bytes; 0 keeps glibc's
+/// own (dynamic) threshold.
+std::size_t mmap_threshold_for(std::size_t sites);
+
+/// Sets glibc's M_MMAP_THRESHOLD to mmap_threshold_for(sites) (nothing without glibc, or at 0).
+void use_malloc_policy_for(std::size_t sites);
+
+/// The threshold set by use_malloc_policy_for, 0 when none was set (for the bench line).
+std::size_t chosen_mmap_threshold();
+
 /// The one-line JSON of `sdot bench`.
 template <class Point>
 json bench_json(const std::string& geometry, std::size_t n, const Result<Point>& result) {
@@ -210,7 +224,8 @@ json bench_json(const std::string& geometry, std::size_t n, const Result<Point>&
           {"assembly_s", s.timings.assembly_s},
           {"linear_solve_s", s.timings.linear_solve_s},
           {"peak_rss_mb", peak_resident_memory_mb()},
-          {"omp_wait_policy", wait_policy ? wait_policy : "default"}};
+          {"omp_wait_policy", wait_policy ? wait_policy : "default"},
+          {"mmap_threshold", chosen_mmap_threshold() ? json(chosen_mmap_threshold()) : json("default")}};
 }
 
 /// The bench density of the unit square (plane and torus): a k × k grid of squares, two triangles

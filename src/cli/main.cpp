@@ -4,9 +4,6 @@
 #include <filesystem>
 #include <iostream>
 #include <sstream>
-#if defined(__GLIBC__)
-#include <malloc.h>
-#endif
 
 #include "common.hpp"
 #include "registry.hpp"
@@ -76,6 +73,8 @@ int run_solve(const sdot::cli::Registry& registry, int argc, char** argv) {
   if (!problem.is_object()) throw sdot::InputError(problem_path, "the problem must be a JSON object");
   if (!problem.contains("geometry")) throw sdot::InputError("geometry", "missing (e.g. \"plane\")");
   const auto& commands = find_geometry(registry, problem["geometry"]);
+  if (problem.contains("sites") && problem["sites"].is_array())
+    sdot::cli::use_malloc_policy_for(problem["sites"].size());
   context.want_svg = !svg_path.empty();
   const auto output = commands.solve(problem, context);
   const std::string text = output.result.dump(1) + "\n";
@@ -130,6 +129,7 @@ int run_bench(const sdot::cli::Registry& registry, int argc, char** argv) {
   }
   if (geometry.empty() || !have_n) throw UsageError("bench needs --geometry NAME and --n N");
   const auto& commands = find_geometry(registry, json(geometry));
+  sdot::cli::use_malloc_policy_for(request.n);
   const json line = commands.bench(request);
   std::cout << line.dump() << std::endl;
   return line["status"] == "converged" || line["status"] == "precision_floor" ? 0 : 3;
@@ -169,13 +169,6 @@ int run_demo(const sdot::cli::Registry& registry, int argc, char** argv) {
 
 int main(int argc, char** argv) {
   sdot::detail::rerun_with_passive_openmp_waits(argv, "SDOT_COMMAND_REEXEC");
-#if defined(__GLIBC__)
-  // Arrays of 1 MB and more come straight from the system and go back to it when freed. glibc
-  // otherwise raises that threshold to the size of each large array freed (up to 32 MB), and the
-  // vectors and triangulations rebuilt at every Newton step then fragment the heap: plane, 10⁶
-  // sites, peak RSS about 1050 MB against 930 MB for the same data.
-  mallopt(M_MMAP_THRESHOLD, 1 << 20);
-#endif
   sdot::cli::Registry registry;
   sdot::cli::register_geometries(registry);
   try {

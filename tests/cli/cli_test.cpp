@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "common.hpp"  // src/cli, through sdot_cli
 #include "support/scratch_directory.hpp"
 
 namespace {
@@ -443,6 +444,17 @@ TEST(Cli, OpenMPThreadsWaitPassivelyUnlessToldOtherwise) {
   EXPECT_EQ(policy_of("env -u OMP_WAIT_POLICY -u GOMP_SPINCOUNT -u SDOT_COMMAND_REEXEC"), "passive");
 #endif
   EXPECT_EQ(policy_of("env OMP_WAIT_POLICY=active"), "active");
+}
+
+TEST(Cli, LargeProblemsMapTheirArraysFromTheSystem) {
+  // glibc's own threshold below large_problem_sites (speed), 1 MB from there (peak memory)
+  EXPECT_EQ(sdot::cli::mmap_threshold_for(1), 0u);
+  EXPECT_EQ(sdot::cli::mmap_threshold_for(sdot::cli::large_problem_sites - 1), 0u);
+  EXPECT_EQ(sdot::cli::mmap_threshold_for(sdot::cli::large_problem_sites), std::size_t{1} << 20);
+  EXPECT_EQ(sdot::cli::mmap_threshold_for(10'000'000), std::size_t{1} << 20);
+  const auto r = run("bench --geometry sphere --n 300 --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(json::parse(r.out)["mmap_threshold"], "default");
 }
 
 TEST(Cli, DemoWritesResultsAndPictures) {
