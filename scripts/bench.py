@@ -130,17 +130,23 @@ def core_command(sdot, geometry, n):
 
 
 def core_rows(sdot, sizes, repeats_small):
+    """The core rows in CORE_ROWS order. The runs are interleaved: size by size, each repeat runs
+    every geometry in turn, so that rows compared in the table (the torus against the plane) ran
+    minutes apart at most, through the same drifts of the shared machine's speed."""
+    runs = {}  # (geometry, n) -> its runs
+    for n in sorted(set(sizes)):
+        geometries = [g for g, smallest, largest in CORE_ROWS if smallest <= n <= largest]
+        for _ in range(repeats_small if n <= 100_000 else 1):
+            for geometry in geometries:
+                command = core_command(sdot, geometry, n)
+                stdout, _ = run_measured(command)
+                runs.setdefault((geometry, n), []).append(json_line(stdout, command))
     rows = []
     for geometry, smallest, largest in CORE_ROWS:
         for n in (n for n in sizes if smallest <= n <= largest):
-            command = core_command(sdot, geometry, n)
-            runs = []
-            for _ in range(repeats_small if n <= 100_000 else 1):
-                stdout, _ = run_measured(command)
-                runs.append(json_line(stdout, command))
             # the run of median total time stands for the row, so its stages add up
-            runs.sort(key=lambda r: r["time_s"])
-            row = dict(runs[len(runs) // 2], runs=len(runs))
+            measured = sorted(runs[(geometry, n)], key=lambda r: r["time_s"])
+            row = dict(measured[len(measured) // 2], runs=len(measured))
             if row.get("status") not in ("converged", "precision_floor"):
                 log(f"{geometry} N={n}: status {row.get('status')}")
             rows.append(row)
@@ -363,7 +369,7 @@ def main():
     blocks, raw = {"machine": machine_block(build)}, {}
 
     if "core" in args.sections:
-        rows = core_rows(str(sdot), sizes, repeats_small=1 if args.quick else 3)
+        rows = core_rows(str(sdot), sizes, repeats_small=1 if args.quick else 5)
         raw["core"] = rows
         blocks["core"] = core_table(rows)
         blocks["memory"] = memory_table(rows)
