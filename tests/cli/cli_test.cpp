@@ -460,7 +460,12 @@ TEST(Cli, LargeProblemsMapTheirArraysFromTheSystem) {
   const auto large =
       run("bench --geometry plane --n " + std::to_string(sdot::cli::large_problem_sites) + " --tolerance 0.5 --quiet");
   ASSERT_EQ(large.exit_code, 0) << large.err;
+#ifdef __SANITIZE_ADDRESS__
+  // AddressSanitizer's allocator ignores mallopt (it returns 0): nothing was set
+  EXPECT_EQ(json::parse(large.out)["mmap_threshold"], "default");
+#else
   EXPECT_EQ(json::parse(large.out)["mmap_threshold"], 1 << 20);
+#endif
 #endif
 }
 
