@@ -18,7 +18,11 @@ namespace sphparam {
 /// From this many unknowns the Tutte systems are factorised by CHOLMOD's supernodal Cholesky,
 /// which is faster there than Eigen's LDLᵀ (igea_134k: 0.61 s against 1.09 s). The Newton
 /// systems go to the library's default solver (multigrid-preconditioned CG at these sizes).
-inline constexpr long cholmod_from_unknowns = 80000;
+/// Below it Eigen's smaller factors (METIS order) win when there are many reweightings
+/// (armadillo_43k, 5 systems: initial map 0.54 s against 0.83 s); from about 45k unknowns
+/// CHOLMOD wins (spiky_60k: 1.00 s against 0.50 s, folds_60k 0.52 s against 0.22 s, lion_50k
+/// 0.30 s against 0.25 s), where Eigen's first system, in AMD order, has far more fill.
+inline constexpr long cholmod_from_unknowns = 45000;
 
 /// Vertex adjacency (CSR, sorted) and per-vertex incident faces of a closed triangle mesh.
 struct Topology {
@@ -118,7 +122,7 @@ double untangling_energy(const ChartPatch& patch, const Eigen::MatrixX2d& x, dou
                          double& min_det);
 /// Minimises the untangling energy from `x` for a decreasing ε (L-BFGS with backtracking at each
 /// ε, the paper's ε rule) until every face is positively oriented: true then, with `x` updated.
-/// False when that fails in 30 ε steps or about 2·10⁷ face evaluations (e.g. the fixed ring's
+/// False when that fails in 8 ε steps or about 2·10⁷ face evaluations (e.g. the fixed ring's
 /// kernel is empty).
 /// `face_budget` (optional): face evaluations left to spend; lowered by those spent.
 bool untangle_chart_patch(const ChartPatch& patch, Eigen::MatrixX2d& x, std::size_t* face_budget = nullptr);
@@ -144,6 +148,10 @@ struct OptimizeOptions {
   double activity_threshold = 1e-2;
   /// The vertices active in the first sweep (one flag per vertex); empty: all of them.
   std::vector<char> start_active;
+  /// ω in (0, 2): each vertex first tries ω times its Gauss–Newton step (successive
+  /// over-relaxation), then the damped steps. ω > 1 moves smooth, far-reaching area errors
+  /// faster, which plain Gauss–Seidel corrects slowly; near a converged map it overshoots.
+  double over_relaxation = 1;
 };
 /// The sweep limit of `options`: max_sweeps when ≥ 0; otherwise 200 up to the default angle
 /// weight, and 2000 above it. A large λ moves the map from area-preserving towards conformal,

@@ -455,7 +455,18 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
           uo.regularization = eps;
           int sweeps = 0;
           for (int chunk = 0; chunk < 6 && flips > 0; ++chunk) {
-            if (local_untangling) uo.start_active = near_flipped_faces(mesh, topo, s, 4);
+            // Chunk 0 opens most folds (spiky_120k: 4,311 flipped faces → 38); what is left of the
+            // area error is smooth and far-reaching, which over-relaxed sweeps (ω = 1.6) correct
+            // about twice as fast. After two such chunks the area gained per chunk is small and the
+            // last folds are local: the rest start near them (spiky_120k: untangling 2.39 s →
+            // 1.19 s, final area mean|d| 0.0522 → 0.0512; igea_134k, flip-free after chunk 0, as
+            // before). ω = 1.6 in chunk 0 overshoots the maps OT leaves nearly converged
+            // (igea_134k: final area mean|d| 0.0044 → 0.0058).
+            uo.over_relaxation = chunk >= 1 ? 1.6 : 1.0;
+            if (local_untangling || chunk >= 3)
+              uo.start_active = near_flipped_faces(mesh, topo, s, 4);
+            else
+              uo.start_active.clear();
             sweeps += optimizer().run(s, uo).sweeps;
             flips = count_flips(mesh, s);
           }

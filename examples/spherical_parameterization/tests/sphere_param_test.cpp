@@ -675,6 +675,47 @@ TEST(AreaOptimizer, RepeatedRunsMatchOptimizeAreaAndCheckThePositions) {
   }
 }
 
+TEST(AreaOptimizer, OverRelaxationCorrectsASmoothAreaErrorFaster) {
+  // an ellipsoid 3 times longer than wide, its vertices projected radially: the area error is
+  // smooth and spans the whole sphere, the error the untangling's later chunks are left with
+  const Mesh m = test::ellipsoid(4, 3, 1, 1);
+  const Topology topo(m);
+  const std::vector<double> targets = face_targets(m, {});
+  std::vector<Vec3> start(m.vertices.size());
+  for (std::size_t i = 0; i < start.size(); ++i) start[i] = m.vertices[i].normalized();
+  ASSERT_EQ(count_flips(m, start), 0u);
+  const AreaOptimizer optimizer(m, topo, targets);
+  auto energy_after_10_sweeps = [&](double omega) {
+    std::vector<Vec3> s = start;
+    OptimizeOptions o;
+    o.angle_weight = 0, o.regularization = 0.1, o.max_sweeps = 10, o.activity_threshold = 1e-4;
+    o.over_relaxation = omega;
+    const OptimizeResult r = optimizer.run(s, o);
+    EXPECT_LT(r.energy_end, r.energy_start) << "omega " << omega;
+    return r.energy_end;
+  };
+  const double plain = energy_after_10_sweeps(1.0), relaxed = energy_after_10_sweeps(1.6);
+  EXPECT_LT(relaxed, 0.8 * plain) << "plain " << plain << ", over-relaxed " << relaxed;
+}
+
+TEST(AreaOptimizer, OverRelaxationOutsideZeroToTwoIsRejected) {
+  const Mesh m = test::icosphere(1);
+  const Topology topo(m);
+  const std::vector<double> targets = face_targets(m, {});
+  for (double omega : {0.0, -0.5, 2.0, std::numeric_limits<double>::quiet_NaN()}) {
+    std::vector<Vec3> s = m.vertices;
+    OptimizeOptions o;
+    o.over_relaxation = omega;
+    try {
+      optimize_area(m, topo, targets, s, o);
+      ADD_FAILURE() << "over-relaxation " << omega << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("over_relaxation"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(s, m.vertices);  // rejected before any move
+  }
+}
+
 TEST(Stages, SubdivideKeepsOriginalVerticesFirst) {
   const Mesh m = test::icosphere(1);
   const Mesh f = subdivide(m);
