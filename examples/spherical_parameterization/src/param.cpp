@@ -278,29 +278,36 @@ class LaplacianSolver {
 }  // namespace
 
 Topology::Topology(const Mesh& mesh) {
+  // Flat arrays only, no vector per vertex: the coarse-to-fine map builds one per level
+  // (capsule_120k: 98 levels, 0.41 s with a vector per vertex).
   const std::size_t nv = mesh.vertices.size();
-  std::vector<std::vector<int>> adj(nv);
   face_offsets.assign(nv + 1, 0);
   for (const auto& f : mesh.faces)
-    for (int k = 0; k < 3; ++k) {
-      adj[u(f[u(k)])].push_back(f[u((k + 1) % 3)]);
-      adj[u(f[u(k)])].push_back(f[u((k + 2) % 3)]);
-      ++face_offsets[u(f[u(k)]) + 1];
-    }
-  nbr_offsets.assign(nv + 1, 0);
-  for (std::size_t i = 0; i < nv; ++i) {
-    auto& a = adj[i];
-    std::sort(a.begin(), a.end());
-    a.erase(std::unique(a.begin(), a.end()), a.end());
-    nbr_offsets[i + 1] = nbr_offsets[i] + static_cast<int>(a.size());
-  }
-  nbrs.reserve(u(nbr_offsets[nv]));
-  for (auto& a : adj) nbrs.insert(nbrs.end(), a.begin(), a.end());
+    for (int v : f) ++face_offsets[u(v) + 1];
   for (std::size_t i = 0; i < nv; ++i) face_offsets[i + 1] += face_offsets[i];
   vfaces.resize(u(face_offsets[nv]));
   std::vector<int> fill(face_offsets.begin(), face_offsets.end() - 1);
   for (std::size_t f = 0; f < mesh.faces.size(); ++f)
     for (int v : mesh.faces[f]) vfaces[u(fill[u(v)]++)] = static_cast<int>(f);
+  // each face gives its two other vertices to each of its vertices: 2 candidates per face, then
+  // each vertex's candidates sorted and made unique in place
+  std::vector<int> candidates(2 * vfaces.size());
+  for (std::size_t i = 0; i < nv; ++i)
+    for (int q = face_offsets[i]; q < face_offsets[i + 1]; ++q) {
+      const auto& f = mesh.faces[u(vfaces[u(q)])];
+      const int c = f[0] == static_cast<int>(i) ? 0 : (f[1] == static_cast<int>(i) ? 1 : 2);
+      candidates[u(2 * q)] = f[u((c + 1) % 3)];
+      candidates[u(2 * q + 1)] = f[u((c + 2) % 3)];
+    }
+  nbr_offsets.assign(nv + 1, 0);
+  nbrs.clear();
+  nbrs.reserve(vfaces.size());
+  for (std::size_t i = 0; i < nv; ++i) {
+    const auto first = candidates.begin() + 2 * face_offsets[i], last = candidates.begin() + 2 * face_offsets[i + 1];
+    std::sort(first, last);
+    nbrs.insert(nbrs.end(), first, std::unique(first, last));
+    nbr_offsets[i + 1] = static_cast<int>(nbrs.size());
+  }
 }
 
 std::vector<double> face_targets(const Mesh& mesh, const std::vector<double>& vertex_factors) {
