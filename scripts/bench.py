@@ -292,8 +292,8 @@ def param_table(rows):
 
 # ----------------------------------------------------------------------------------- hard shapes
 
-HARD_CASES = [("slivers", [25_000, 60_000, 120_000]), ("folds", [25_000, 60_000, 120_000]),
-              ("spiky", [25_000, 60_000, 120_000]), ("tubes", [25_000]), ("capsule", [25_000])]
+HARD_CASES = [(case, [25_000, 60_000, 120_000])
+              for case in ("slivers", "folds", "spiky", "tubes", "capsule", "capsule40")]
 
 
 def hard_rows(build):

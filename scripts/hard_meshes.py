@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Generates the hard inputs of sdot-sphere-param (docs/spherical_parameterization.md, "Hard shapes").
 
-    /usr/bin/python3 scripts/hard_meshes.py OUTDIR [--cases tubes capsule spiky folds slivers]
+    /usr/bin/python3 scripts/hard_meshes.py OUTDIR [--cases tubes capsule capsule40 spiky folds slivers]
                                            [--sizes 25000 60000 120000] [--seed 1]
 
 Writes OUTDIR/CASE_SIZEk.off for every case and size: closed, genus-0, manifold, outward-oriented
@@ -19,6 +19,8 @@ depend on SIZE, only its resolution does). Every case is deterministic (fixed se
   capsule  one closed tube whose length is 300 times its radius (3 times the ratio of the tubes
            case): rings of vertices, each turned by half a step from the last, about
            equilateral triangles, and each end closed by a fan around one apex vertex
+  capsule40  the same tube 40 times as long as its radius: its Tutte map is crushed by about
+           e^-33, within reach of the stretch reweighting (the capsule's e^-600 is not)
   slivers  an icosphere whose edges are split, a fifth of them at 1e-3 of their length from an
            end (neighbouring faces with 1000:1 area ratios) and a fifth at 2.5e-5 (0.001 degree
            needles), and a tenth of its faces split by a point 1e-5 of the face's height from an
@@ -481,7 +483,14 @@ def write_off(path, v, f):
         np.savetxt(out, np.concatenate([np.full((len(f), 1), 3), f], axis=1), fmt='%d')
 
 
-CASES = {'tubes': tubes, 'capsule': capsule, 'spiky': spiky, 'folds': folds, 'slivers': slivers}
+def capsule40(size, seed):
+    """A tube of radius 1 and length 40: crushed by about e^-33 in the Tutte map, which the stretch
+    reweighting can still open (unlike the capsule's e^-600)."""
+    return capsule(size, seed, ratio=40.0)
+
+
+CASES = {'tubes': tubes, 'capsule': capsule, 'capsule40': capsule40, 'spiky': spiky, 'folds': folds,
+         'slivers': slivers}
 
 
 def main():
