@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <numeric>
@@ -457,6 +458,29 @@ double crushed_quantile(const Mesh& m, const std::vector<Vec3>& s, const std::ve
   std::sort(logs.begin(), logs.end());
   return logs[logs.size() / 200];
 }
+
+/// The crushed quantile of the balanced Tutte map of `m` without and with stretch reweighting
+/// (at most 40), the reweightings taken and the faces the reweighted map flips on the sphere.
+struct ReweightingOutcome {
+  double plain_q = 0, reweighted_q = 0;
+  int reweightings = 0;
+  std::size_t flips = 0;
+};
+ReweightingOutcome reweighting_outcome(const Mesh& m) {
+  const Topology topo(m);
+  const auto targets = face_targets(m, {});
+  const auto masses = vertex_targets(m, targets);
+  auto plain = tutte_sphere_map(m, topo, targets, 0);
+  mobius_balance(plain, masses);
+  ReweightingOutcome r;
+  auto reweighted = tutte_sphere_map(m, topo, targets, 40, &r.reweightings);
+  mobius_balance(reweighted, masses);
+  r.plain_q = crushed_quantile(m, plain, targets), r.reweighted_q = crushed_quantile(m, reweighted, targets);
+  r.flips = count_flips(m, reweighted);
+  std::printf("%zu vertices, crushed 0.5%% quantile of log stretch: %.2f plain, %.2f after %d reweightings\n",
+              m.vertices.size(), r.plain_q, r.reweighted_q, r.reweightings);
+  return r;
+}
 }  // namespace
 
 TEST(Stages, TutteMapIsTheSameWhateverTheCallersBlasThreads) {
@@ -479,23 +503,13 @@ TEST(Stages, TutteMapIsTheSameWhateverTheCallersBlasThreads) {
 TEST(Stages, StretchReweightingOpensCrushedSpikes) {
   // Long thin spikes: the harmonic (Tutte) map crushes them exponentially in their length.
   const Mesh m = test::spiky_sphere(4, 4, 8.0, 0.2);
-  const Topology topo(m);
-  const auto targets = face_targets(m, {});
-  const auto masses = vertex_targets(m, targets);
-  auto plain = tutte_sphere_map(m, topo, targets, 0);
-  mobius_balance(plain, masses);
-  int reweightings = 0;
-  auto reweighted = tutte_sphere_map(m, topo, targets, 40, &reweightings);
-  mobius_balance(reweighted, masses);
-  const double plain_q = crushed_quantile(m, plain, targets), reweighted_q = crushed_quantile(m, reweighted, targets);
-  std::printf("crushed 0.5%% quantile of log stretch: %.2f plain, %.2f after %d reweightings\n", plain_q, reweighted_q,
-              reweightings);
-  EXPECT_LT(plain_q, -6.0);  // the test is only meaningful if the spikes are crushed
-  EXPECT_GT(reweightings, 0);
-  EXPECT_GT(reweighted_q, plain_q + 3.0);
+  const ReweightingOutcome r = reweighting_outcome(m);
+  EXPECT_LT(r.plain_q, -6.0);  // the test is only meaningful if the spikes are crushed
+  EXPECT_GT(r.reweightings, 0);
+  EXPECT_GT(r.reweighted_q, r.plain_q + 3.0);
   // The planar embedding stays valid (positive weights); on the sphere, triangles that the
   // reweighting stretched over a large arc may come out inverted, a handful that OT redoes.
-  EXPECT_LE(count_flips(m, reweighted), m.faces.size() / 200);
+  EXPECT_LE(r.flips, m.faces.size() / 200);
 }
 
 TEST(Stages, StretchReweightingOpensADeeplyCrushedTubeInFewSolves) {
@@ -504,21 +518,11 @@ TEST(Stages, StretchReweightingOpensADeeplyCrushedTubeInFewSolves) {
   // sphere after all 40). Still below e^-20 after 4 reweightings, the reweighting takes e^±10
   // steps and stops at e^-6 in the plane (18 reweightings, e^-4.5 on the sphere).
   const Mesh m = test::capsule(48, 40);
-  const Topology topo(m);
-  const auto targets = face_targets(m, {});
-  const auto masses = vertex_targets(m, targets);
-  auto plain = tutte_sphere_map(m, topo, targets, 0);
-  mobius_balance(plain, masses);
-  int reweightings = 0;
-  auto reweighted = tutte_sphere_map(m, topo, targets, 40, &reweightings);
-  mobius_balance(reweighted, masses);
-  const double plain_q = crushed_quantile(m, plain, targets), reweighted_q = crushed_quantile(m, reweighted, targets);
-  std::printf("%zu vertices, crushed 0.5%% quantile of log stretch: %.2f plain, %.2f after %d reweightings\n",
-              m.vertices.size(), plain_q, reweighted_q, reweightings);
-  EXPECT_LT(plain_q, -25.0);  // deeply crushed, or the test says nothing
-  EXPECT_LE(reweightings, 20);
-  EXPECT_GT(reweighted_q, -9.0);
-  EXPECT_LE(count_flips(m, reweighted), m.faces.size() / 200);
+  const ReweightingOutcome r = reweighting_outcome(m);
+  EXPECT_LT(r.plain_q, -25.0);  // deeply crushed, or the test says nothing
+  EXPECT_LE(r.reweightings, 20);
+  EXPECT_GT(r.reweighted_q, -9.0);
+  EXPECT_LE(r.flips, m.faces.size() / 200);
 }
 
 TEST(Stages, PatchRepairReembedsFoldedDisk) {
@@ -645,21 +649,33 @@ TEST(AngleWeight, SweepLimitFollowsTheWeight) {
   EXPECT_EQ(sweep_limit(o), 7);
 }
 
-TEST(AngleWeight, InvalidWeightIsRejected) {
+namespace {
+/// optimize_area rejects each of `values`, set by `set`, with an invalid_argument that names
+/// `field`, before it moves any vertex.
+void expect_option_rejected(const std::string& field, std::initializer_list<double> values,
+                            const std::function<void(OptimizeOptions&, double)>& set) {
   const Mesh m = test::icosphere(1);
   const Topology topo(m);
   const std::vector<double> targets = face_targets(m, {});
-  for (double weight : {-1e-3, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+  for (double value : values) {
     std::vector<Vec3> s = m.vertices;
     OptimizeOptions o;
-    o.angle_weight = weight;
+    set(o, value);
     try {
       optimize_area(m, topo, targets, s, o);
-      ADD_FAILURE() << "angle weight " << weight << " accepted";
+      ADD_FAILURE() << field << " " << value << " accepted";
     } catch (const std::invalid_argument& e) {
-      EXPECT_NE(std::string(e.what()).find("angle_weight"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
     }
+    EXPECT_EQ(s, m.vertices);
   }
+}
+}  // namespace
+
+TEST(AngleWeight, InvalidWeightIsRejected) {
+  expect_option_rejected("angle_weight",
+                         {-1e-3, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()},
+                         [](OptimizeOptions& o, double weight) { o.angle_weight = weight; });
 }
 
 TEST(AreaOptimizer, RepeatedRunsMatchOptimizeAreaAndCheckThePositions) {
@@ -722,21 +738,8 @@ TEST(AreaOptimizer, OverRelaxationCorrectsASmoothAreaErrorFaster) {
 }
 
 TEST(AreaOptimizer, OverRelaxationOutsideZeroToTwoIsRejected) {
-  const Mesh m = test::icosphere(1);
-  const Topology topo(m);
-  const std::vector<double> targets = face_targets(m, {});
-  for (double omega : {0.0, -0.5, 2.0, std::numeric_limits<double>::quiet_NaN()}) {
-    std::vector<Vec3> s = m.vertices;
-    OptimizeOptions o;
-    o.over_relaxation = omega;
-    try {
-      optimize_area(m, topo, targets, s, o);
-      ADD_FAILURE() << "over-relaxation " << omega << " accepted";
-    } catch (const std::invalid_argument& e) {
-      EXPECT_NE(std::string(e.what()).find("over_relaxation"), std::string::npos) << e.what();
-    }
-    EXPECT_EQ(s, m.vertices);  // rejected before any move
-  }
+  expect_option_rejected("over_relaxation", {0.0, -0.5, 2.0, std::numeric_limits<double>::quiet_NaN()},
+                         [](OptimizeOptions& o, double omega) { o.over_relaxation = omega; });
 }
 
 TEST(Stages, SubdivideKeepsOriginalVerticesFirst) {
