@@ -450,7 +450,7 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
     // reweighting opens by about e^1 per solve (a capsule 40 radii long, 100k vertices: from
     // e^-33 to e^-10 in 40 solves, 6.1 s, then an OT with 4 continuation stages, 4.2 s). From
     // there each face's factor may change by up to e^±10 per solve, and e^-6, which the OT
-    // takes without continuation, is enough (that capsule: 14 solves, map 10.2 s → 3.5 s, final
+    // takes without continuation, is enough (that capsule: 14 solves, the whole run 10.2 s → 3.5 s, final
     // area mean|d| 0.053 → 0.040). Milder crushing keeps e^±4 and e^-4 (after 4 reweightings
     // arm.off is at e^-13.8 and armadillo_43k at e^-10.6; the spiky spheres stop after 2).
     if (done == 4 && sorted[q] < -20.0) deeply_crushed = true;
