@@ -450,9 +450,10 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
     // reweighting opens by about e^1 per solve (a capsule 40 radii long, 100k vertices: from
     // e^-33 to e^-10 in 40 solves, 6.1 s, then an OT with 4 continuation stages, 4.2 s). From
     // there each face's factor may change by up to e^±10 per solve, and e^-6, which the OT
-    // takes without continuation, is enough (that capsule: 14 solves, the whole run 10.2 s → 3.5 s, final
-    // area mean|d| 0.053 → 0.040). Milder crushing keeps e^±4 and e^-4 (after 4 reweightings
-    // arm.off is at e^-13.8 and armadillo_43k at e^-10.6; the spiky spheres stop after 2).
+    // takes without continuation, is enough (that capsule: 14 solves, the whole run 10.2 s →
+    // 3.5 s, final area mean|d| 0.053 → 0.040). Milder crushing keeps e^±4 and e^-4 (after 4
+    // reweightings arm.off is at e^-13.8 and armadillo_43k at e^-10.6; the spiky spheres stop
+    // after 2).
     if (done == 4 && sorted[q] < -20.0) deeply_crushed = true;
     still_crushed = sorted[q] <= (deeply_crushed ? -6.0 : -4.0);
     if (!still_crushed) break;  // no region crushed by more than e^-4: good enough for OT
@@ -469,19 +470,20 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
     // most crushed shared mesh: 0.14 %).
     below_rounding =
         sorted[q] + std::log(4 * M_PI / static_cast<double>(nf)) < std::log(1e-28) || sphere_flips * 100 > nf;
-    // More than 0.5 % of the faces still of area 0 in the plane after a reweighting: their
-    // vertices coincide in doubles, and no reweighting can measure, let alone undo, a crushing
-    // below that (tubes_120k and capsule_120k: the 0.5 % quantile stays at the floor, e^-585 to
-    // e^-617, through all 5 or 6 reweightings before the stall, about 1 s).
+    // Stalled, besides less than 0.25 gained over 4 reweightings (above):
+    // - more than 0.5 % of the faces still of area 0 in the plane after a reweighting: their
+    //   vertices coincide in doubles, and no reweighting can measure, let alone undo, a crushing
+    //   below that (tubes_120k and capsule_120k: the 0.5 % quantile stays at the floor, e^-585
+    //   to e^-617, through all 5 or 6 reweightings before the plain stall, about 1 s);
+    // - a deeply crushed map whose pace over its first 4 reweightings by e^±10 would not reach
+    //   e^-6 within the reweightings left (a capsule 60 radii long, 25k vertices: 0.2 a
+    //   reweighting from e^-33, with 6 % of its faces rounded flat on the sphere: the
+    //   coarse-to-fine map, 1.1 s and area mean|d| 0.098, against 40 reweightings, the OT,
+    //   1.5 s and 0.113).
     const double gain_per_reweighting =
         quantiles.size() > 4 ? (quantiles.back() - quantiles[quantiles.size() - 5]) / 4 : 0.0;
     const bool stalled =
         (quantiles.size() > 4 && gain_per_reweighting < 0.0625) || (done >= 1 && vanished > q) ||
-        // at its pace over its first 4 reweightings by e^±10, a deeply crushed map would
-        // not reach e^-6 within the reweightings left (a capsule 60 radii long, 25k
-        // vertices: 0.2 a reweighting from e^-33, with 6 % of its faces rounded flat on the
-        // sphere: the coarse-to-fine map, 1.1 s and area mean|d| 0.098, against 40
-        // reweightings, the OT, 1.5 s and 0.113)
         (deeply_crushed && done >= 8 && quantiles.back() + gain_per_reweighting * (max_reweightings - done) < -6.0);
     if (stalled && (crushed || below_rounding)) break;
     // the full stretch (exponent 1) converges in half the reweightings of its square root
