@@ -374,6 +374,7 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
   int done = 0;
   bool still_crushed = false, below_rounding = false, deeply_crushed = false;
   std::vector<double> quantiles;  // the 0.5 % quantile of the log stretch after each solve
+  constexpr int window = 4;       // reweightings over which progress is judged
   for (int iteration = 0;; ++iteration) {
     std::vector<Eigen::Triplet<double>> trips;
     trips.reserve((lower_only ? 3 : 6) * nf + nv);
@@ -454,9 +455,10 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
     // 3.5 s, final area mean|d| 0.053 → 0.040). Milder crushing keeps e^±4 and e^-4 (after 4
     // reweightings arm.off is at e^-13.8 and armadillo_43k at e^-10.6; the spiky spheres stop
     // after 2).
-    if (done == 4 && sorted[q] < -20.0) deeply_crushed = true;
-    still_crushed = sorted[q] <= (deeply_crushed ? -6.0 : -4.0);
-    if (!still_crushed) break;  // no region crushed by more than e^-4: good enough for OT
+    if (done == window && sorted[q] < -20.0) deeply_crushed = true;
+    const double enough = deeply_crushed ? -6.0 : -4.0;
+    still_crushed = sorted[q] <= enough;
+    if (!still_crushed) break;  // no region crushed by more than e^-4 (e^-6): good enough for OT
     // Less than 0.25 gained over 4 reweightings: the crushed parts are tubes whose crushing
     // reweighting cannot undo (param.hpp, hierarchical_sphere_map); more solves only cost time.
     quantiles.push_back(sorted[q]);
@@ -480,11 +482,11 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
     //   reweighting from e^-33, with 6 % of its faces rounded flat on the sphere: the
     //   coarse-to-fine map, 1.1 s and area mean|d| 0.098, against 40 reweightings, the OT,
     //   1.5 s and 0.113).
-    const double gain_per_reweighting =
-        quantiles.size() > 4 ? (quantiles.back() - quantiles[quantiles.size() - 5]) / 4 : 0.0;
+    const bool full_window = quantiles.size() > std::size_t{window};
+    const double gain = full_window ? quantiles.back() - quantiles[quantiles.size() - 1 - std::size_t{window}] : 0.0;
     const bool stalled =
-        (quantiles.size() > 4 && gain_per_reweighting < 0.0625) || (done >= 1 && vanished > q) ||
-        (deeply_crushed && done >= 8 && quantiles.back() + gain_per_reweighting * (max_reweightings - done) < -6.0);
+        (full_window && gain < 0.25) || (done >= 1 && vanished > q) ||
+        (deeply_crushed && done >= 2 * window && quantiles.back() + gain / window * (max_reweightings - done) < enough);
     if (stalled && (crushed || below_rounding)) break;
     // the full stretch (exponent 1) converges in half the reweightings of its square root
     // (bunny_35k: 7 against 14) to the same OT result
