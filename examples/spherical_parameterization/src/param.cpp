@@ -56,6 +56,8 @@ Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> nested_dissection(
 }
 #endif
 
+}  // namespace
+
 /// An elimination order of the Tutte systems from the mesh's geometry: nested dissection by
 /// planes. A node's vertices are split at the median of their widest coordinate; the vertices of
 /// the smaller side that have a neighbour on the other side form the separator, ordered after
@@ -132,10 +134,142 @@ std::vector<int> plane_nested_dissection(const Topology& topo, const std::vector
   return order;
 }
 
+/// Another elimination order of the Tutte systems, from the mesh graph alone: nested dissection
+/// by breadth-first level structures (George and Liu). A node's vertices are layered by their
+/// graph distance to a pseudo-peripheral vertex of the node; the layer where the count passes
+/// half the node is the separator (only its vertices that touch the next layer), ordered after
+/// the layers before and after it, which are ordered the same way down to 8 vertices; a node that
+/// is not connected splits into the part reached and the rest, with no separator. O(n log n).
+/// The layers of a surface are rings around the start, so a thin part (a spike, a finger) is cut
+/// across, where a plane may cut it lengthwise: spiky_120k (scripts/hard_meshes.py), 1.7e9 flops
+/// a factorisation against 4.5e9 in the plane order; capsule40_120k, a straight tube, 9.6e8
+/// against 7.7e8.
+std::vector<int> graph_nested_dissection(const Topology& topo, const std::vector<int>& index, int unknowns) {
+  constexpr int leaf = 8;
+  std::vector<int> ids;  // mesh vertices, regrouped node by node
+  ids.reserve(u(unknowns));
+  for (std::size_t v = 0; v < index.size(); ++v)
+    if (index[v] >= 0) ids.push_back(static_cast<int>(v));
+  std::vector<int> label(index.size(), -1);  // the node a vertex is in (−1: fixed or ordered)
+  for (int v : ids) label[u(v)] = 0;
+  int labels = 1;
+  std::vector<int> order(u(unknowns));
+  std::vector<int> scratch(u(unknowns));
+  std::vector<int> distance(index.size(), -1);
+  std::vector<int> queue;
+  queue.reserve(u(unknowns));
+  std::vector<char> part(index.size(), 0);
+  std::vector<int> layer_sizes;
+  // Breadth-first search from `root` over the vertices labelled `node`: `queue` lists them by
+  // distance, `distance` holds it (reset by the caller).
+  auto search = [&](int root, int node) {
+    queue.clear();
+    queue.push_back(root);
+    distance[u(root)] = 0;
+    for (std::size_t head = 0; head < queue.size(); ++head) {
+      const int v = queue[head];
+      for (int k = topo.nbr_offsets[u(v)]; k < topo.nbr_offsets[u(v) + 1]; ++k) {
+        const int w = topo.nbrs[u(k)];
+        if (label[u(w)] == node && distance[u(w)] < 0) distance[u(w)] = distance[u(v)] + 1, queue.push_back(w);
+      }
+    }
+  };
+  auto reset = [&] {
+    for (int v : queue) distance[u(v)] = -1;
+  };
+  struct Node {
+    int begin, end, last;  // ids[begin, end) take the order positions [last - size, last)
+  };
+  std::vector<Node> stack{{0, unknowns, unknowns}};
+  while (!stack.empty()) {
+    const Node node = stack.back();
+    stack.pop_back();
+    const int size = node.end - node.begin;
+    const auto first = ids.begin() + node.begin;
+    auto emit_all = [&] {
+      for (int k = 0; k < size; ++k) {
+        label[u(ids[u(node.begin + k)])] = -1;
+        order[u(node.last - size + k)] = index[u(ids[u(node.begin + k)])];
+      }
+    };
+    if (size <= leaf) {
+      emit_all();
+      continue;
+    }
+    const int me = label[u(*first)];
+    // a pseudo-peripheral vertex: the last one reached, while that makes the search deeper
+    int root = *first, depth = -1;
+    for (int round = 0; round < 3; ++round) {
+      search(root, me);
+      const int last = queue.back(), reached_depth = distance[u(last)];
+      if (reached_depth <= depth || static_cast<int>(queue.size()) < size) break;
+      depth = reached_depth;
+      if (round < 2) reset(), root = last;
+    }
+    if (static_cast<int>(queue.size()) == size && queue.size() > 0 && distance[u(queue.back())] != depth) {
+      reset();
+      search(root, me);  // the deepest search's distances again
+    }
+    const int reached = static_cast<int>(queue.size());
+    depth = distance[u(queue.back())];
+    if (reached == size && depth < 2) {  // a clique-like node: nothing to dissect
+      reset();
+      emit_all();
+      continue;
+    }
+    // part: 0 before the separator, 1 after, 2 separator
+    if (reached < size) {
+      for (auto it = first; it != ids.begin() + node.end; ++it) part[u(*it)] = distance[u(*it)] >= 0 ? 0 : 1;
+    } else {
+      layer_sizes.assign(u(depth) + 1, 0);
+      for (int v : queue) ++layer_sizes[u(distance[u(v)])];
+      int middle = 1, below = layer_sizes[0];
+      while (middle < depth - 1 && below + layer_sizes[u(middle)] < size / 2) below += layer_sizes[u(middle++)];
+      for (int v : queue) {
+        const int d = distance[u(v)];
+        char p = d < middle ? 0 : 1;
+        if (d == middle) {
+          p = 0;  // joins the first part unless it touches the next layer
+          for (int k = topo.nbr_offsets[u(v)]; k < topo.nbr_offsets[u(v) + 1]; ++k) {
+            const int w = topo.nbrs[u(k)];
+            if (label[u(w)] == me && distance[u(w)] == middle + 1) {
+              p = 2;
+              break;
+            }
+          }
+        }
+        part[u(v)] = p;
+      }
+    }
+    reset();
+    int counts[3] = {0, 0, 0};
+    for (auto it = first; it != ids.begin() + node.end; ++it) ++counts[static_cast<int>(part[u(*it)])];
+    int fill[3] = {0, counts[0], counts[0] + counts[1]};
+    for (auto it = first; it != ids.begin() + node.end; ++it) scratch[u(fill[static_cast<int>(part[u(*it)])]++)] = *it;
+    std::copy(scratch.begin(), scratch.begin() + size, first);
+    for (int k = counts[0] + counts[1]; k < size; ++k) {
+      const int v = ids[u(node.begin + k)];
+      label[u(v)] = -1;
+      order[u(node.last - size + k)] = index[u(v)];
+    }
+    const int left = labels++, right = labels++;
+    for (int k = 0; k < counts[0]; ++k) label[u(ids[u(node.begin + k)])] = left;
+    for (int k = counts[0]; k < counts[0] + counts[1]; ++k) label[u(ids[u(node.begin + k)])] = right;
+    const int left_end = node.begin + counts[0], right_end = left_end + counts[1];
+    const int right_last = node.last - (size - counts[0] - counts[1]);
+    stack.push_back({node.begin, left_end, right_last - counts[1]});
+    stack.push_back({left_end, right_end, right_last});
+  }
+  return order;
+}
+
+namespace {
+
 /// The Tutte systems (same pattern for every reweighting): Eigen's LDLᵀ in the order of one
 /// METIS nested dissection (bunny_35k, 8 factorisations: 0.037 s each against 0.064 s with AMD,
 /// for one ordering of 0.1 s), or CHOLMOD's supernodal Cholesky from `cholmod_from_unknowns`,
-/// in the order of `plane_nested_dissection` (set_geometric_order), analysed once.
+/// analysed once, in the candidate order (set_candidate_orders: the plane, then the graph nested
+/// dissection) its symbolic analysis finds the fewest flops for.
 /// The METIS ordering runs on the second core while the first system is factorised with AMD;
 /// the reweightings (if any) use it. The matrix comes as triplets, in the same order at every
 /// reweighting: from the second, their values go straight to their places in the permuted lower
@@ -157,9 +291,13 @@ class LaplacianSolver {
   [[nodiscard]] bool lower_only() const {
     return use_cholmod_;
   }
-  /// The elimination order of the CHOLMOD path (unknowns in pivot order); empty: AMD.
-  void set_geometric_order(std::vector<int> order) {
-    given_order_ = std::move(order);
+  /// Elimination orders of the CHOLMOD path (each lists the unknowns in pivot order); the first
+  /// factorisation keeps the one with the fewest flops, a later one only with 20 % fewer than an
+  /// earlier one (brain_48k: 7.2e8 flops in the graph order against 8.8e8 in the plane order,
+  /// but the initial map 0.22 s against 0.20 s; the plane order's separators are larger and
+  /// fewer, its supernodes larger). None: AMD.
+  void set_candidate_orders(std::vector<std::vector<int>> orders) {
+    candidate_orders_ = std::move(orders);
   }
   /// Factorises the matrix of `triplets` (duplicates summed), which it may release.
   void factorize(Eigen::Index n, Triplets&& triplets) {
@@ -184,11 +322,8 @@ class LaplacianSolver {
         common_.supernodal = CHOLMOD_SUPERNODAL;
         common_.final_asis = 1;
         common_.nmethods = 1;
-        common_.method[0].ordering = given_order_.size() == static_cast<std::size_t>(n) ? CHOLMOD_GIVEN : CHOLMOD_AMD;
       }
-      if (!factor_)
-        factor_ = cholmod_analyze_p(&view, common_.method[0].ordering == CHOLMOD_GIVEN ? given_order_.data() : nullptr,
-                                    nullptr, 0, &common_);
+      if (!factor_) analyse(view, n);
       const bool factorised = factor_ && cholmod_factorize(&view, factor_, &common_) && common_.status == CHOLMOD_OK;
       sdot::detail::set_blas_threads(1);
       if (!factorised)
@@ -260,8 +395,30 @@ class LaplacianSolver {
     return ldlt_.solve(rhs);
   }
 
+#ifdef SDOT_HAVE_CHOLMOD
+  /// The symbolic factorisation in the candidate order set_candidate_orders prefers (AMD without one).
+  void analyse(cholmod_sparse& view, Eigen::Index n) {
+    common_.method[0].ordering = CHOLMOD_AMD;
+    double fewest = std::numeric_limits<double>::infinity();
+    for (auto& order : candidate_orders_) {
+      if (order.size() != static_cast<std::size_t>(n)) continue;
+      common_.method[0].ordering = CHOLMOD_GIVEN;
+      cholmod_factor* candidate = cholmod_analyze_p(&view, order.data(), nullptr, 0, &common_);
+      if (candidate && common_.fl < 0.8 * fewest) {
+        fewest = common_.fl;
+        if (factor_) cholmod_free_factor(&factor_, &common_);
+        factor_ = candidate;
+      } else if (candidate) {
+        cholmod_free_factor(&candidate, &common_);
+      }
+    }
+    if (!factor_) common_.method[0].ordering = CHOLMOD_AMD, factor_ = cholmod_analyze(&view, &common_);
+    std::vector<std::vector<int>>().swap(candidate_orders_);
+  }
+#endif
+
   bool use_cholmod_ = false, analysed_ = false;
-  std::vector<int> given_order_;
+  std::vector<std::vector<int>> candidate_orders_;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;  // AMD: the first system (and without METIS)
 #ifdef SDOT_HAVE_CHOLMOD
   cholmod_common common_{};
@@ -368,7 +525,13 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
     if (static_cast<int>(i) != b[0] && static_cast<int>(i) != b[1] && static_cast<int>(i) != b[2]) index[i] = n++;
   std::vector<double> sigma(nf, 1.0);  // stretch factors (image area / target) of the last map
   LaplacianSolver solver(n);
-  if (solver.lower_only()) solver.set_geometric_order(plane_nested_dissection(topo, mesh.vertices, index, n));
+  if (solver.lower_only()) {
+    // both orders at once, one on each core (121k unknowns: about 0.03 s each)
+    auto plane_order =
+        std::async(std::launch::async, [&] { return plane_nested_dissection(topo, mesh.vertices, index, n); });
+    std::vector<int> graph_order = graph_nested_dissection(topo, index, n);
+    solver.set_candidate_orders({plane_order.get(), std::move(graph_order)});
+  }
   const bool lower_only = solver.lower_only();
   std::vector<Vec3> s(nv);
   int done = 0;

@@ -38,6 +38,15 @@ std::vector<double> face_targets(const Mesh& mesh, const std::vector<double>& ve
 /// Target vertex masses: 1/3 of the incident face targets (sum 4π).
 std::vector<double> vertex_targets(const Mesh& mesh, const std::vector<double>& face_target);
 
+/// Elimination orders for the Tutte systems on CHOLMOD's path (the one with the fewer flops is
+/// used). `index` numbers the unknown vertices (−1: a fixed vertex) from 0 to `unknowns` − 1;
+/// each result lists the unknowns in pivot order. Nested dissection by planes through the
+/// vertices' `points`, at the median of the widest coordinate:
+std::vector<int> plane_nested_dissection(const Topology& topo, const std::vector<Vec3>& points,
+                                         const std::vector<int>& index, int unknowns);
+/// and by breadth-first layers of the mesh graph, which cut thin parts across.
+std::vector<int> graph_nested_dissection(const Topology& topo, const std::vector<int>& index, int unknowns);
+
 /// Planar Tutte embedding (positive clamped-cotangent weights) with the largest face as the
 /// outer triangle, mapped to the unit sphere by inverse stereographic projection, oriented
 /// outward. The mesh must be outward oriented. With `targets` (face target areas), the weights
