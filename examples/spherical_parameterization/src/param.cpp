@@ -10,6 +10,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <future>
 #include <iterator>
 #include <limits>
@@ -141,41 +142,45 @@ std::vector<int> plane_nested_dissection(const Topology& topo, const std::vector
 /// the layers before and after it, which are ordered the same way down to 8 vertices; a node that
 /// is not connected splits into the part reached and the rest, with no separator. O(n log n).
 /// The layers of a surface are rings around the start, so a thin part (a spike, a finger) is cut
-/// across, where a plane may cut it lengthwise: spiky_120k (scripts/hard_meshes.py), 1.7e9 flops
-/// a factorisation against 4.5e9 in the plane order; capsule40_120k, a straight tube, 9.6e8
-/// against 7.7e8.
+/// across, where a plane may cut it lengthwise: spiky_120k (scripts/hard_meshes.py), 1.8e9 flops
+/// a factorisation against 4.5e9 in the plane order; capsule40_120k, a straight tube, 1.0e9
+/// against 7.7e8; igea_134k Loop-subdivided twice, 1.9e11 against 1.4e11 (CHOLMOD's
+/// symbolic analysis). About 2.5 times the plane order's time (2.1 M unknowns: 1.8 s).
 std::vector<int> graph_nested_dissection(const Topology& topo, const std::vector<int>& index, int unknowns) {
   constexpr int leaf = 8;
   std::vector<int> ids;  // mesh vertices, regrouped node by node
   ids.reserve(u(unknowns));
   for (std::size_t v = 0; v < index.size(); ++v)
     if (index[v] >= 0) ids.push_back(static_cast<int>(v));
-  std::vector<int> label(index.size(), -1);  // the node a vertex is in (−1: fixed or ordered)
-  for (int v : ids) label[u(v)] = 0;
-  int labels = 1;
+  // What a search reads of a vertex, together (one cache line): the node it is in (−1: fixed or
+  // ordered), the last search that reached it and its distance there.
+  struct State {
+    int label = -1, search = -1, distance = 0;
+  };
+  std::vector<State> state(index.size());
+  for (int v : ids) state[u(v)].label = 0;
+  int labels = 1, searches = 0;
   std::vector<int> order(u(unknowns));
   std::vector<int> scratch(u(unknowns));
-  std::vector<int> distance(index.size(), -1);
   std::vector<int> queue;
   queue.reserve(u(unknowns));
   std::vector<char> part(index.size(), 0);
   std::vector<int> layer_sizes;
   // Breadth-first search from `root` over the vertices labelled `node`: `queue` lists them by
-  // distance, `distance` holds it (reset by the caller).
+  // distance.
   auto search = [&](int root, int node) {
+    const int id = searches++;
     queue.clear();
     queue.push_back(root);
-    distance[u(root)] = 0;
+    state[u(root)].search = id, state[u(root)].distance = 0;
     for (std::size_t head = 0; head < queue.size(); ++head) {
-      const int v = queue[head];
+      const int v = queue[head], next = state[u(v)].distance + 1;
       for (int k = topo.nbr_offsets[u(v)]; k < topo.nbr_offsets[u(v) + 1]; ++k) {
-        const int w = topo.nbrs[u(k)];
-        if (label[u(w)] == node && distance[u(w)] < 0) distance[u(w)] = distance[u(v)] + 1, queue.push_back(w);
+        State& w = state[u(topo.nbrs[u(k)])];
+        if (w.label == node && w.search != id) w.search = id, w.distance = next, queue.push_back(topo.nbrs[u(k)]);
       }
     }
-  };
-  auto reset = [&] {
-    for (int v : queue) distance[u(v)] = -1;
+    return id;
   };
   struct Node {
     int begin, end, last;  // ids[begin, end) take the order positions [last - size, last)
@@ -185,10 +190,10 @@ std::vector<int> graph_nested_dissection(const Topology& topo, const std::vector
     const Node node = stack.back();
     stack.pop_back();
     const int size = node.end - node.begin;
-    const auto first = ids.begin() + node.begin;
+    const auto first = ids.begin() + node.begin, last = ids.begin() + node.end;
     auto emit_all = [&] {
       for (int k = 0; k < size; ++k) {
-        label[u(ids[u(node.begin + k)])] = -1;
+        state[u(ids[u(node.begin + k)])].label = -1;
         order[u(node.last - size + k)] = index[u(ids[u(node.begin + k)])];
       }
     };
@@ -196,43 +201,32 @@ std::vector<int> graph_nested_dissection(const Topology& topo, const std::vector
       emit_all();
       continue;
     }
-    const int me = label[u(*first)];
-    // a pseudo-peripheral vertex: the last one reached, while that makes the search deeper
-    int root = *first, depth = -1;
-    for (int round = 0; round < 3; ++round) {
-      search(root, me);
-      const int last = queue.back(), reached_depth = distance[u(last)];
-      if (reached_depth <= depth || static_cast<int>(queue.size()) < size) break;
-      depth = reached_depth;
-      if (round < 2) reset(), root = last;
-    }
-    if (static_cast<int>(queue.size()) == size && queue.size() > 0 && distance[u(queue.back())] != depth) {
-      reset();
-      search(root, me);  // the deepest search's distances again
-    }
+    const int me = state[u(*first)].label;
+    // a pseudo-peripheral vertex: the last one reached from the node's first vertex
+    int id = search(*first, me);
+    if (static_cast<int>(queue.size()) == size) id = search(queue.back(), me);
     const int reached = static_cast<int>(queue.size());
-    depth = distance[u(queue.back())];
+    const int depth = state[u(queue.back())].distance;
     if (reached == size && depth < 2) {  // a clique-like node: nothing to dissect
-      reset();
       emit_all();
       continue;
     }
     // part: 0 before the separator, 1 after, 2 separator
     if (reached < size) {
-      for (auto it = first; it != ids.begin() + node.end; ++it) part[u(*it)] = distance[u(*it)] >= 0 ? 0 : 1;
+      for (auto it = first; it != last; ++it) part[u(*it)] = state[u(*it)].search == id ? 0 : 1;
     } else {
       layer_sizes.assign(u(depth) + 1, 0);
-      for (int v : queue) ++layer_sizes[u(distance[u(v)])];
+      for (int v : queue) ++layer_sizes[u(state[u(v)].distance)];
       int middle = 1, below = layer_sizes[0];
       while (middle < depth - 1 && below + layer_sizes[u(middle)] < size / 2) below += layer_sizes[u(middle++)];
       for (int v : queue) {
-        const int d = distance[u(v)];
+        const int d = state[u(v)].distance;
         char p = d < middle ? 0 : 1;
         if (d == middle) {
           p = 0;  // joins the first part unless it touches the next layer
           for (int k = topo.nbr_offsets[u(v)]; k < topo.nbr_offsets[u(v) + 1]; ++k) {
-            const int w = topo.nbrs[u(k)];
-            if (label[u(w)] == me && distance[u(w)] == middle + 1) {
+            const State& w = state[u(topo.nbrs[u(k)])];
+            if (w.label == me && w.search == id && w.distance == middle + 1) {
               p = 2;
               break;
             }
@@ -241,20 +235,19 @@ std::vector<int> graph_nested_dissection(const Topology& topo, const std::vector
         part[u(v)] = p;
       }
     }
-    reset();
     int counts[3] = {0, 0, 0};
-    for (auto it = first; it != ids.begin() + node.end; ++it) ++counts[static_cast<int>(part[u(*it)])];
+    for (auto it = first; it != last; ++it) ++counts[static_cast<int>(part[u(*it)])];
     int fill[3] = {0, counts[0], counts[0] + counts[1]};
-    for (auto it = first; it != ids.begin() + node.end; ++it) scratch[u(fill[static_cast<int>(part[u(*it)])]++)] = *it;
+    for (auto it = first; it != last; ++it) scratch[u(fill[static_cast<int>(part[u(*it)])]++)] = *it;
     std::copy(scratch.begin(), scratch.begin() + size, first);
     for (int k = counts[0] + counts[1]; k < size; ++k) {
       const int v = ids[u(node.begin + k)];
-      label[u(v)] = -1;
+      state[u(v)].label = -1;
       order[u(node.last - size + k)] = index[u(v)];
     }
     const int left = labels++, right = labels++;
-    for (int k = 0; k < counts[0]; ++k) label[u(ids[u(node.begin + k)])] = left;
-    for (int k = counts[0]; k < counts[0] + counts[1]; ++k) label[u(ids[u(node.begin + k)])] = right;
+    for (int k = 0; k < counts[0]; ++k) state[u(ids[u(node.begin + k)])].label = left;
+    for (int k = counts[0]; k < counts[0] + counts[1]; ++k) state[u(ids[u(node.begin + k)])].label = right;
     const int left_end = node.begin + counts[0], right_end = left_end + counts[1];
     const int right_last = node.last - (size - counts[0] - counts[1]);
     stack.push_back({node.begin, left_end, right_last - counts[1]});
@@ -268,8 +261,8 @@ namespace {
 /// The Tutte systems (same pattern for every reweighting): Eigen's LDLᵀ in the order of one
 /// METIS nested dissection (bunny_35k, 8 factorisations: 0.037 s each against 0.064 s with AMD,
 /// for one ordering of 0.1 s), or CHOLMOD's supernodal Cholesky from `cholmod_from_unknowns`,
-/// analysed once, in the candidate order (set_candidate_orders: the plane, then the graph nested
-/// dissection) its symbolic analysis finds the fewest flops for.
+/// analysed once, in the order (set_order_makers: the plane, then the graph nested dissection)
+/// its symbolic analysis finds the fewest flops for.
 /// The METIS ordering runs on the second core while the first system is factorised with AMD;
 /// the reweightings (if any) use it. The matrix comes as triplets, in the same order at every
 /// reweighting: from the second, their values go straight to their places in the permuted lower
@@ -291,13 +284,15 @@ class LaplacianSolver {
   [[nodiscard]] bool lower_only() const {
     return use_cholmod_;
   }
-  /// Elimination orders of the CHOLMOD path (each lists the unknowns in pivot order); the first
-  /// factorisation keeps the one with the fewest flops, a later one only with 20 % fewer than an
+  /// Makers of elimination orders for the CHOLMOD path (each order lists the unknowns in pivot
+  /// order). The first factorisation makes and analyses them at once, each on a thread of its
+  /// own, and keeps the one with the fewest flops, a later one only with 20 % fewer than an
   /// earlier one (brain_48k: 7.2e8 flops in the graph order against 8.8e8 in the plane order,
   /// but the initial map 0.22 s against 0.20 s; the plane order's separators are larger and
   /// fewer, its supernodes larger). None: AMD.
-  void set_candidate_orders(std::vector<std::vector<int>> orders) {
-    candidate_orders_ = std::move(orders);
+  void set_order_makers(std::vector<std::function<std::vector<int>()>> makers) {
+    // started now, while the caller assembles the first system (2 M unknowns: about 0.5 s)
+    for (auto& make : makers) pending_orders_.push_back(std::async(std::launch::async, std::move(make)));
   }
   /// Factorises the matrix of `triplets` (duplicates summed), which it may release.
   void factorize(Eigen::Index n, Triplets&& triplets) {
@@ -308,15 +303,19 @@ class LaplacianSolver {
       // (spiky_120k: 3 factorisations 1.78 s -> 1.28 s). One again afterwards, as sdot's
       // solvers expect (linear_solver.hpp, use_single_threaded_blas).
       sdot::detail::set_blas_threads(2);
+      // The first system in the chosen order, as CHOLMOD permutes it; from the second, the
+      // permuted lower triangle in place (write_in_place).
+      Eigen::SparseMatrix<double> first_system;
       if (!factor_) {
-        prepare_cholmod(n, triplets);
+        first_system.resize(n, n);
+        first_system.setFromTriplets(triplets.begin(), triplets.end());
+        first_system.makeCompressed();
+        analyse(first_system);
       } else {
-        double* values = permuted_.valuePtr();
-        std::fill(values, values + permuted_.nonZeros(), 0.0);
-        for (std::size_t t = 0; t < triplets.size(); ++t) values[slots_[t]] += triplets[t].value();
+        write_in_place(n, triplets);
       }
       Triplets().swap(triplets);  // released before the factorisation (2 M unknowns: 240 MB)
-      cholmod_sparse view = Eigen::viewAsCholmod(permuted_);
+      cholmod_sparse view = Eigen::viewAsCholmod(in_place_ ? permuted_ : first_system);
       view.stype = -1;
       const bool factorised = factor_ && cholmod_factorize(&view, factor_, &common_) && common_.status == CHOLMOD_OK;
       sdot::detail::set_blas_threads(1);
@@ -367,12 +366,12 @@ class LaplacianSolver {
   [[nodiscard]] Eigen::MatrixXd solve(const Eigen::MatrixXd& rhs) {
 #ifdef SDOT_HAVE_CHOLMOD
     if (use_cholmod_) {
-      Eigen::MatrixXd b = pivots_ * rhs;  // the factor is of P A Pᵀ
+      Eigen::MatrixXd b = in_place_ ? Eigen::MatrixXd(pivots_ * rhs) : rhs;  // in place: a factor of P A Pᵀ
       cholmod_dense view = Eigen::viewAsCholmod(b);
       cholmod_dense* x = cholmod_solve(CHOLMOD_A, factor_, &view, &common_);
       if (!x) throw std::runtime_error("the Tutte system could not be solved (CHOLMOD)");
-      Eigen::MatrixXd out = pivots_.transpose() *
-                            Eigen::Map<const Eigen::MatrixXd>(static_cast<const double*>(x->x), rhs.rows(), rhs.cols());
+      const Eigen::Map<const Eigen::MatrixXd> solution(static_cast<const double*>(x->x), rhs.rows(), rhs.cols());
+      Eigen::MatrixXd out = in_place_ ? Eigen::MatrixXd(pivots_.transpose() * solution) : Eigen::MatrixXd(solution);
       cholmod_free_dense(&x, &common_);
       return out;
     }
@@ -391,42 +390,68 @@ class LaplacianSolver {
   }
 
 #ifdef SDOT_HAVE_CHOLMOD
-  /// The first system on CHOLMOD's path: its symbolic factorisation in the candidate order
-  /// set_candidate_orders prefers (AMD without one) gives the pivot order P (the order, then
-  /// the elimination tree's postorder); the factor kept is that of the lower triangle of
-  /// P A Pᵀ in its own (natural) order, whose values every system then writes in place. So
-  /// cholmod_factorize reads the matrix as it is, where with a permutation it transposes it
-  /// twice (cholmod_factorize.c), and the triplets skip setFromTriplets (capsule40_120k,
-  /// 16 systems: about 0.02 s a system of 0.19 s).
-  void prepare_cholmod(Eigen::Index n, const Triplets& triplets) {
-    cholmod_start(&common_);
+  /// The symbolic factorisation of the first system on CHOLMOD's path, in the order of the
+  /// makers set_order_makers prefers (AMD without one). The analyses run at once, the first on
+  /// this thread, each other one on a thread of its own with its own cholmod_common (CHOLMOD is
+  /// thread-safe so); a factor keeps no pointer to the common that made it.
+  void analyse(Eigen::SparseMatrix<double>& lower) {
+    const auto start = [](cholmod_common& common) {
+      cholmod_start(&common);
+      common.supernodal = CHOLMOD_SUPERNODAL;
+      common.final_asis = 1;
+      common.nmethods = 1;
+      common.method[0].ordering = CHOLMOD_GIVEN;
+    };
+    start(common_);
     common_started_ = true;
-    common_.supernodal = CHOLMOD_SUPERNODAL;
-    common_.final_asis = 1;
-    common_.nmethods = 1;
-    Eigen::SparseMatrix<double> lower(n, n);
-    lower.setFromTriplets(triplets.begin(), triplets.end());
-    lower.makeCompressed();
     cholmod_sparse view = Eigen::viewAsCholmod(lower);
     view.stype = -1;
-    double fewest = std::numeric_limits<double>::infinity();
-    for (auto& order : candidate_orders_) {
-      if (order.size() != static_cast<std::size_t>(n)) continue;
-      common_.method[0].ordering = CHOLMOD_GIVEN;
-      cholmod_factor* candidate = cholmod_analyze_p(&view, order.data(), nullptr, 0, &common_);
-      if (candidate && common_.fl < 0.8 * fewest) {
-        fewest = common_.fl;
-        if (factor_) cholmod_free_factor(&factor_, &common_);
-        factor_ = candidate;
-      } else if (candidate) {
-        cholmod_free_factor(&candidate, &common_);
-      }
+    struct Analysis {
+      cholmod_factor* factor = nullptr;
+      double flops = std::numeric_limits<double>::infinity();
+    };
+    const auto n = static_cast<std::size_t>(lower.rows());
+    const auto run = [&view, n](std::future<std::vector<int>>& pending_order, cholmod_common* common) {
+      std::vector<int> order = pending_order.get();
+      Analysis a;
+      if (order.size() == n) a.factor = cholmod_analyze_p(&view, order.data(), nullptr, 0, common);
+      if (a.factor) a.flops = common->fl;
+      return a;
+    };
+    std::vector<cholmod_common> others(pending_orders_.size() > 1 ? pending_orders_.size() - 1 : 0);
+    std::vector<std::future<Analysis>> pending;
+    for (std::size_t k = 0; k < others.size(); ++k) {
+      start(others[k]);
+      pending.push_back(std::async(std::launch::async, run, std::ref(pending_orders_[k + 1]), &others[k]));
     }
-    std::vector<std::vector<int>>().swap(candidate_orders_);
+    Analysis best;
+    if (!pending_orders_.empty()) best = run(pending_orders_[0], &common_);
+    for (auto& p : pending) {
+      Analysis a = p.get();
+      if (a.factor && a.flops < 0.8 * best.flops) std::swap(a, best);
+      if (a.factor) cholmod_free_factor(&a.factor, &common_);
+    }
+    for (auto& common : others) cholmod_finish(&common);
+    pending_orders_.clear();
+    factor_ = best.factor;
     if (!factor_) common_.method[0].ordering = CHOLMOD_AMD, factor_ = cholmod_analyze(&view, &common_);
-    if (!factor_) return;
-    // pivots_ maps an unknown to its pivot position
-    pivots_.resize(n);
+  }
+
+  /// From the second system on CHOLMOD's path: the lower triangle of P A Pᵀ (P: the first
+  /// factor's pivot order, the order then the elimination tree's postorder) in its own natural
+  /// order, its values written in place. cholmod_factorize then reads the matrix as it is, where
+  /// with a permutation it transposes it twice (cholmod_factorize.c), and the triplets skip
+  /// setFromTriplets (capsule40_120k, 16 systems: about 0.02 s a system of 0.19 s). The first
+  /// system goes the plain way: a single one (most meshes) would not repay the second analysis
+  /// (2 M unknowns: about 1 s with the slots).
+  void write_in_place(Eigen::Index n, const Triplets& triplets) {
+    if (in_place_) {
+      double* values = permuted_.valuePtr();
+      std::fill(values, values + permuted_.nonZeros(), 0.0);
+      for (std::size_t t = 0; t < triplets.size(); ++t) values[slots_[t]] += triplets[t].value();
+      return;
+    }
+    pivots_.resize(n);  // maps an unknown to its pivot position
     const int* pivot_order = static_cast<const int*>(factor_->Perm);
     for (Eigen::Index k = 0; k < n; ++k) pivots_.indices()[pivot_order[k]] = static_cast<int>(k);
     cholmod_free_factor(&factor_, &common_);
@@ -448,20 +473,22 @@ class LaplacianSolver {
     // already postordered: the analysis in natural order keeps it
     common_.method[0].ordering = CHOLMOD_NATURAL;
     common_.postorder = 0;
-    cholmod_sparse permuted_view = Eigen::viewAsCholmod(permuted_);
-    permuted_view.stype = -1;
-    factor_ = cholmod_analyze(&permuted_view, &common_);
+    cholmod_sparse view = Eigen::viewAsCholmod(permuted_);
+    view.stype = -1;
+    factor_ = cholmod_analyze(&view, &common_);
+    in_place_ = true;
   }
 #endif
 
   bool use_cholmod_ = false, analysed_ = false;
-  std::vector<std::vector<int>> candidate_orders_;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;  // AMD: the first system (and without METIS)
+  std::vector<std::future<std::vector<int>>> pending_orders_;  // set_order_makers
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;    // AMD: the first system (and without METIS)
 #ifdef SDOT_HAVE_CHOLMOD
   cholmod_common common_{};
   bool common_started_ = false;
   cholmod_factor* factor_ = nullptr;
-  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> pivots_;  // CHOLMOD's path: P
+  bool in_place_ = false;                                                 // write_in_place
+  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> pivots_;  // in place: P
   std::future<Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>> pending_order_;
   Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> order_;
   Eigen::SparseMatrix<double> permuted_;  // lower triangle of P A Pᵀ
@@ -563,13 +590,9 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
     if (static_cast<int>(i) != b[0] && static_cast<int>(i) != b[1] && static_cast<int>(i) != b[2]) index[i] = n++;
   std::vector<double> sigma(nf, 1.0);  // stretch factors (image area / target) of the last map
   LaplacianSolver solver(n);
-  if (solver.lower_only()) {
-    // both orders at once, one on each core (121k unknowns: about 0.03 s each)
-    auto plane_order =
-        std::async(std::launch::async, [&] { return plane_nested_dissection(topo, mesh.vertices, index, n); });
-    std::vector<int> graph_order = graph_nested_dissection(topo, index, n);
-    solver.set_candidate_orders({plane_order.get(), std::move(graph_order)});
-  }
+  if (solver.lower_only())
+    solver.set_order_makers({[&] { return plane_nested_dissection(topo, mesh.vertices, index, n); },
+                             [&] { return graph_nested_dissection(topo, index, n); }});
   const bool lower_only = solver.lower_only();
   std::vector<Vec3> s(nv);
   int done = 0;

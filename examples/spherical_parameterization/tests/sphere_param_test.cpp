@@ -594,6 +594,19 @@ TEST(Stages, StretchReweightingOpensCrushedSpikes) {
   EXPECT_LE(r.flips, m.faces.size() / 200);
 }
 
+TEST(Stages, StretchReweightingOpensCrushedSpikesOnCholmodsPath) {
+  // From cholmod_from_unknowns the systems go to CHOLMOD: the first in the chosen order, the
+  // reweighted ones as the lower triangle of P A Pᵀ with their values written in place.
+  const Mesh m = test::spiky_sphere(7, 12, 8.0, 0.1);
+  ASSERT_GE(static_cast<long>(m.vertices.size()), cholmod_from_unknowns + 3);
+  const ReweightingOutcome r = reweighting_outcome(m);
+  EXPECT_LT(r.plain_q, -6.0);
+  EXPECT_GE(r.reweightings, 2);  // the in-place systems, not only the first
+  EXPECT_LE(r.reweightings, 8);  // 4 when written; a wrong system converges slowly or not at all
+  EXPECT_GT(r.reweighted_q, r.plain_q + 3.0);
+  EXPECT_LE(r.flips, m.faces.size() / 200);
+}
+
 TEST(Stages, StretchReweightingOpensADeeplyCrushedTubeInFewSolves) {
   // A tube 40 radii long (16,994 vertices): its Tutte map crushes 0.5 % of the faces by e^-33
   // or more, and e^±4 per reweighting opens them by about e^0.5 per solve (still e^-13.9 on the
