@@ -57,34 +57,26 @@ Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> nested_dissection(
 }
 #endif
 
-}  // namespace
-
-/// An elimination order of the Tutte systems from the mesh's geometry: nested dissection by
-/// planes. A node's vertices are split at the median of their widest coordinate; the vertices of
-/// the smaller side that have a neighbour on the other side form the separator, ordered after
-/// both halves, which are ordered the same way down to 8 vertices. O(n log n): 0.8 s at
-/// 2.1 M unknowns, where CHOLMOD's default analysis (AMD, then METIS) took 13 s for a factor
-/// 1.3 times smaller (Loop-subdivided igea_134k: 1.6e8 against 1.2e8 entries, factorisation
-/// 5.8 s against 4.2 s). `index` numbers the unknowns (−1: a fixed vertex); the result lists
-/// the unknowns in elimination order.
-std::vector<int> plane_nested_dissection(const Topology& topo, const std::vector<Vec3>& points,
-                                         const std::vector<int>& index, int unknowns) {
+/// The nested-dissection driver of both orders below. A node is a range of `ids` (mesh
+/// vertices); `split(node, first, last, part, labels)` marks each vertex of the node with part 0,
+/// part 1 or 2 (the separator), which are ordered in that order: the separator takes the node's
+/// last positions, each part becomes a node, down to 8 vertices. `label` holds the node of each
+/// unknown (−1: a fixed or ordered vertex); `split` may take fresh labels (`labels++`) for
+/// marks of its own, and returns false for a node it cannot split, which is ordered as it is.
+/// `index` numbers the unknowns (−1: a fixed vertex); the result lists them in pivot order.
+template <class Split>
+std::vector<int> dissect(const std::vector<int>& index, int unknowns, std::vector<int>& label, Split split) {
   constexpr int leaf = 8;
   std::vector<int> ids;  // mesh vertices, regrouped node by node
   ids.reserve(u(unknowns));
   for (std::size_t v = 0; v < index.size(); ++v)
     if (index[v] >= 0) ids.push_back(static_cast<int>(v));
-  std::vector<int> label(index.size(), -1);  // the node a vertex is in (−1: fixed or ordered)
+  label.assign(index.size(), -1);
   for (int v : ids) label[u(v)] = 0;
   int labels = 1;
   std::vector<int> order(u(unknowns));
   std::vector<int> scratch(u(unknowns));
   std::vector<char> part(index.size(), 0);
-  auto touches = [&](int v, int other) {
-    for (int k = topo.nbr_offsets[u(v)]; k < topo.nbr_offsets[u(v) + 1]; ++k)
-      if (label[u(topo.nbrs[u(k)])] == other) return true;
-    return false;
-  };
   struct Node {
     int begin, end, last;  // ids[begin, end) take the order positions [last - size, last)
   };
@@ -94,146 +86,12 @@ std::vector<int> plane_nested_dissection(const Topology& topo, const std::vector
     stack.pop_back();
     const int size = node.end - node.begin;
     const auto first = ids.begin() + node.begin, last = ids.begin() + node.end;
-    if (size <= leaf) {
-      for (int k = 0; k < size; ++k) order[u(node.last - size + k)] = index[u(ids[u(node.begin + k)])];
-      continue;
-    }
-    Vec3 low = points[u(*first)], high = low;
-    for (auto it = first; it != last; ++it) low = low.cwiseMin(points[u(*it)]), high = high.cwiseMax(points[u(*it)]);
-    int axis = 0;
-    (high - low).maxCoeff(&axis);
-    const auto middle = first + size / 2;
-    std::nth_element(first, middle, last, [&](int a, int b) { return points[u(a)][axis] < points[u(b)][axis]; });
-    const int left = labels++, right = labels++;
-    for (auto it = first; it != middle; ++it) label[u(*it)] = left;
-    for (auto it = middle; it != last; ++it) label[u(*it)] = right;
-    int left_boundary = 0, right_boundary = 0;
-    for (auto it = first; it != middle; ++it) left_boundary += touches(*it, right);
-    for (auto it = middle; it != last; ++it) right_boundary += touches(*it, left);
-    const int cut = left_boundary <= right_boundary ? left : right, other = cut == left ? right : left;
-    // part: 0 left interior, 1 right interior, 2 separator
-    int counts[3] = {0, 0, 0};
-    for (auto it = first; it != last; ++it) {
-      const int v = *it;
-      const char p = label[u(v)] == cut && touches(v, other) ? 2 : (label[u(v)] == left ? 0 : 1);
-      part[u(v)] = p;
-      ++counts[static_cast<int>(p)];
-    }
-    int fill[3] = {0, counts[0], counts[0] + counts[1]};
-    for (auto it = first; it != last; ++it) scratch[u(fill[static_cast<int>(part[u(*it)])]++)] = *it;
-    std::copy(scratch.begin(), scratch.begin() + size, first);
-    for (int k = counts[0] + counts[1]; k < size; ++k) {
-      const int v = ids[u(node.begin + k)];
-      label[u(v)] = -1;
-      order[u(node.last - size + k)] = index[u(v)];
-    }
-    const int left_end = node.begin + counts[0], right_end = left_end + counts[1];
-    const int right_last = node.last - (size - counts[0] - counts[1]);
-    stack.push_back({node.begin, left_end, right_last - counts[1]});
-    stack.push_back({left_end, right_end, right_last});
-  }
-  return order;
-}
-
-/// Another elimination order of the Tutte systems, from the mesh graph alone: nested dissection
-/// by breadth-first level structures (George and Liu). A node's vertices are layered by their
-/// graph distance to a pseudo-peripheral vertex of the node; the layer where the count passes
-/// half the node is the separator (only its vertices that touch the next layer), ordered after
-/// the layers before and after it, which are ordered the same way down to 8 vertices; a node that
-/// is not connected splits into the part reached and the rest, with no separator. O(n log n).
-/// The layers of a surface are rings around the start, so a thin part (a spike, a finger) is cut
-/// across, where a plane may cut it lengthwise: spiky_120k (scripts/hard_meshes.py), 1.8e9 flops
-/// a factorisation against 4.5e9 in the plane order; capsule40_120k, a straight tube, 1.0e9
-/// against 7.7e8; igea_134k Loop-subdivided twice, 1.9e11 against 1.4e11 (CHOLMOD's
-/// symbolic analysis). About 2.5 times the plane order's time (2.1 M unknowns: 1.8 s).
-std::vector<int> graph_nested_dissection(const Topology& topo, const std::vector<int>& index, int unknowns) {
-  constexpr int leaf = 8;
-  std::vector<int> ids;  // mesh vertices, regrouped node by node
-  ids.reserve(u(unknowns));
-  for (std::size_t v = 0; v < index.size(); ++v)
-    if (index[v] >= 0) ids.push_back(static_cast<int>(v));
-  // What a search reads of a vertex, together (one cache line): the node it is in (−1: fixed or
-  // ordered), the last search that reached it and its distance there.
-  struct State {
-    int label = -1, search = -1, distance = 0;
-  };
-  std::vector<State> state(index.size());
-  for (int v : ids) state[u(v)].label = 0;
-  int labels = 1, searches = 0;
-  std::vector<int> order(u(unknowns));
-  std::vector<int> scratch(u(unknowns));
-  std::vector<int> queue;
-  queue.reserve(u(unknowns));
-  std::vector<char> part(index.size(), 0);
-  std::vector<int> layer_sizes;
-  // Breadth-first search from `root` over the vertices labelled `node`: `queue` lists them by
-  // distance.
-  auto search = [&](int root, int node) {
-    const int id = searches++;
-    queue.clear();
-    queue.push_back(root);
-    state[u(root)].search = id, state[u(root)].distance = 0;
-    for (std::size_t head = 0; head < queue.size(); ++head) {
-      const int v = queue[head], next = state[u(v)].distance + 1;
-      for (int k = topo.nbr_offsets[u(v)]; k < topo.nbr_offsets[u(v) + 1]; ++k) {
-        State& w = state[u(topo.nbrs[u(k)])];
-        if (w.label == node && w.search != id) w.search = id, w.distance = next, queue.push_back(topo.nbrs[u(k)]);
-      }
-    }
-    return id;
-  };
-  struct Node {
-    int begin, end, last;  // ids[begin, end) take the order positions [last - size, last)
-  };
-  std::vector<Node> stack{{0, unknowns, unknowns}};
-  while (!stack.empty()) {
-    const Node node = stack.back();
-    stack.pop_back();
-    const int size = node.end - node.begin;
-    const auto first = ids.begin() + node.begin, last = ids.begin() + node.end;
-    auto emit_all = [&] {
+    if (size <= leaf || !split(label[u(*first)], first, last, part, labels)) {
       for (int k = 0; k < size; ++k) {
-        state[u(ids[u(node.begin + k)])].label = -1;
+        label[u(ids[u(node.begin + k)])] = -1;
         order[u(node.last - size + k)] = index[u(ids[u(node.begin + k)])];
       }
-    };
-    if (size <= leaf) {
-      emit_all();
       continue;
-    }
-    const int me = state[u(*first)].label;
-    // a pseudo-peripheral vertex: the last one reached from the node's first vertex
-    int id = search(*first, me);
-    if (static_cast<int>(queue.size()) == size) id = search(queue.back(), me);
-    const int reached = static_cast<int>(queue.size());
-    const int depth = state[u(queue.back())].distance;
-    if (reached == size && depth < 2) {  // a clique-like node: nothing to dissect
-      emit_all();
-      continue;
-    }
-    // part: 0 before the separator, 1 after, 2 separator
-    if (reached < size) {
-      for (auto it = first; it != last; ++it) part[u(*it)] = state[u(*it)].search == id ? 0 : 1;
-    } else {
-      layer_sizes.assign(u(depth) + 1, 0);
-      for (int v : queue) ++layer_sizes[u(state[u(v)].distance)];
-      int middle = 1, below = layer_sizes[0];
-      while (middle < depth - 1 && below + layer_sizes[u(middle)] < size / 2) below += layer_sizes[u(middle++)];
-      for (int v : queue) {
-        const int d = state[u(v)].distance;
-        char p = d < middle ? 0 : 1;
-        if (d == middle) {
-          p = 0;  // joins the first part unless it touches the next layer
-          for (int k = topo.nbr_offsets[u(v)]; k < topo.nbr_offsets[u(v) + 1]; ++k) {
-            const State& w = state[u(topo.nbrs[u(k)])];
-            if (w.label == me && w.search == id && w.distance == middle + 1) {
-              p = 2;
-              break;
-            }
-          }
-        }
-        part[u(v)] = p;
-      }
     }
     int counts[3] = {0, 0, 0};
     for (auto it = first; it != last; ++it) ++counts[static_cast<int>(part[u(*it)])];
@@ -242,18 +100,129 @@ std::vector<int> graph_nested_dissection(const Topology& topo, const std::vector
     std::copy(scratch.begin(), scratch.begin() + size, first);
     for (int k = counts[0] + counts[1]; k < size; ++k) {
       const int v = ids[u(node.begin + k)];
-      state[u(v)].label = -1;
+      label[u(v)] = -1;
       order[u(node.last - size + k)] = index[u(v)];
     }
     const int left = labels++, right = labels++;
-    for (int k = 0; k < counts[0]; ++k) state[u(ids[u(node.begin + k)])].label = left;
-    for (int k = counts[0]; k < counts[0] + counts[1]; ++k) state[u(ids[u(node.begin + k)])].label = right;
+    for (int k = 0; k < counts[0]; ++k) label[u(ids[u(node.begin + k)])] = left;
+    for (int k = counts[0]; k < counts[0] + counts[1]; ++k) label[u(ids[u(node.begin + k)])] = right;
     const int left_end = node.begin + counts[0], right_end = left_end + counts[1];
     const int right_last = node.last - (size - counts[0] - counts[1]);
     stack.push_back({node.begin, left_end, right_last - counts[1]});
     stack.push_back({left_end, right_end, right_last});
   }
   return order;
+}
+
+using IdIterator = std::vector<int>::iterator;
+
+}  // namespace
+
+/// An elimination order of the Tutte systems from the mesh's geometry: nested dissection by
+/// planes. A node's vertices are split at the median of their widest coordinate; the vertices of
+/// the smaller side that have a neighbour on the other side form the separator. O(n log n):
+/// 0.8 s at 2.1 M unknowns, where CHOLMOD's default analysis (AMD, then METIS) took 13 s for a
+/// factor 1.3 times smaller (Loop-subdivided igea_134k: 1.6e8 against 1.2e8 entries,
+/// factorisation 5.8 s against 4.2 s).
+std::vector<int> plane_nested_dissection(const Topology& topo, const std::vector<Vec3>& points,
+                                         const std::vector<int>& index, int unknowns) {
+  std::vector<int> label;
+  auto touches = [&](int v, int other) {
+    for (int k = topo.nbr_offsets[u(v)]; k < topo.nbr_offsets[u(v) + 1]; ++k)
+      if (label[u(topo.nbrs[u(k)])] == other) return true;
+    return false;
+  };
+  auto split = [&](int, IdIterator first, IdIterator last, std::vector<char>& part, int& labels) {
+    Vec3 low = points[u(*first)], high = low;
+    for (auto it = first; it != last; ++it) low = low.cwiseMin(points[u(*it)]), high = high.cwiseMax(points[u(*it)]);
+    int axis = 0;
+    (high - low).maxCoeff(&axis);
+    const auto middle = first + (last - first) / 2;
+    std::nth_element(first, middle, last, [&](int a, int b) { return points[u(a)][axis] < points[u(b)][axis]; });
+    const int left = labels++, right = labels++;
+    for (auto it = first; it != middle; ++it) label[u(*it)] = left;
+    for (auto it = middle; it != last; ++it) label[u(*it)] = right;
+    int left_boundary = 0, right_boundary = 0;
+    for (auto it = first; it != middle; ++it) left_boundary += touches(*it, right);
+    for (auto it = middle; it != last; ++it) right_boundary += touches(*it, left);
+    const int cut = left_boundary <= right_boundary ? left : right, other = cut == left ? right : left;
+    for (auto it = first; it != last; ++it) {
+      const int v = *it;
+      part[u(v)] = label[u(v)] == cut && touches(v, other) ? 2 : (label[u(v)] == left ? 0 : 1);
+    }
+    return true;
+  };
+  return dissect(index, unknowns, label, split);
+}
+
+/// Another elimination order of the Tutte systems, from the mesh graph alone: nested dissection
+/// by breadth-first level structures (George and Liu). A node's vertices are layered by their
+/// graph distance to a pseudo-peripheral vertex of the node; the layer where the count passes
+/// half the node is the separator (only its vertices that touch the next layer); a node that is
+/// not connected splits into the part reached and the rest, with no separator. O(n log n).
+/// The layers of a surface are rings around the start, so a thin part (a spike, a finger) is cut
+/// across, where a plane may cut it lengthwise: spiky_120k (scripts/hard_meshes.py), 1.8e9 flops
+/// a factorisation against 4.5e9 in the plane order; capsule40_120k, a straight tube, 1.0e9
+/// against 7.7e8; igea_134k Loop-subdivided twice, 1.9e11 against 1.4e11 (CHOLMOD's
+/// symbolic analysis). About 2.5 times the plane order's time (2.1 M unknowns: 1.8 s).
+std::vector<int> graph_nested_dissection(const Topology& topo, const std::vector<int>& index, int unknowns) {
+  std::vector<int> label;
+  // the last search that reached a vertex, and its distance there
+  std::vector<std::pair<int, int>> reached(index.size(), {-1, 0});
+  int searches = 0;
+  std::vector<int> queue;
+  queue.reserve(u(unknowns));
+  std::vector<int> layer_sizes;
+  // Breadth-first search from `root` over the vertices labelled `node`: `queue` lists them by
+  // distance.
+  auto search = [&](int root, int node) {
+    const int id = searches++;
+    queue.clear();
+    queue.push_back(root);
+    reached[u(root)] = {id, 0};
+    for (std::size_t head = 0; head < queue.size(); ++head) {
+      const int v = queue[head], next = reached[u(v)].second + 1;
+      for (int k = topo.nbr_offsets[u(v)]; k < topo.nbr_offsets[u(v) + 1]; ++k) {
+        const int w = topo.nbrs[u(k)];
+        if (label[u(w)] == node && reached[u(w)].first != id) reached[u(w)] = {id, next}, queue.push_back(w);
+      }
+    }
+    return id;
+  };
+  auto split = [&](int me, IdIterator first, IdIterator last, std::vector<char>& part, int&) {
+    const auto size = static_cast<std::size_t>(last - first);
+    // a pseudo-peripheral vertex: the last one reached from the node's first vertex
+    int id = search(*first, me);
+    if (queue.size() == size) id = search(queue.back(), me);
+    const int depth = reached[u(queue.back())].second;
+    if (queue.size() == size && depth < 2) return false;  // a clique-like node: nothing to dissect
+    if (queue.size() < size) {                            // not connected: the part reached and the rest
+      for (auto it = first; it != last; ++it) part[u(*it)] = reached[u(*it)].first == id ? 0 : 1;
+      return true;
+    }
+    layer_sizes.assign(u(depth) + 1, 0);
+    for (int v : queue) ++layer_sizes[u(reached[u(v)].second)];
+    int middle = 1;
+    std::size_t below = u(layer_sizes[0]);
+    while (middle < depth - 1 && below + u(layer_sizes[u(middle)]) < size / 2) below += u(layer_sizes[u(middle++)]);
+    for (int v : queue) {
+      const int d = reached[u(v)].second;
+      char p = d < middle ? 0 : 1;
+      if (d == middle) {
+        p = 0;  // joins the first part unless it touches the next layer
+        for (int k = topo.nbr_offsets[u(v)]; k < topo.nbr_offsets[u(v) + 1]; ++k) {
+          const int w = topo.nbrs[u(k)];
+          if (label[u(w)] == me && reached[u(w)].first == id && reached[u(w)].second == middle + 1) {
+            p = 2;
+            break;
+          }
+        }
+      }
+      part[u(v)] = p;
+    }
+    return true;
+  };
+  return dissect(index, unknowns, label, split);
 }
 
 namespace {

@@ -38,8 +38,8 @@ std::vector<double> face_targets(const Mesh& mesh, const std::vector<double>& ve
 /// Target vertex masses: 1/3 of the incident face targets (sum 4π).
 std::vector<double> vertex_targets(const Mesh& mesh, const std::vector<double>& face_target);
 
-/// Elimination orders for the Tutte systems on CHOLMOD's path (the one with the fewer flops is
-/// used). `index` numbers the unknown vertices (−1: a fixed vertex) from 0 to `unknowns` − 1;
+/// Elimination orders for the Tutte systems on CHOLMOD's path (the plane order, unless the graph
+/// order needs 20 % fewer flops). `index` numbers the unknown vertices (−1: a fixed vertex) from 0 to `unknowns` − 1;
 /// each result lists the unknowns in pivot order. Nested dissection by planes through the
 /// vertices' `points`, at the median of the widest coordinate:
 std::vector<int> plane_nested_dissection(const Topology& topo, const std::vector<Vec3>& points,
