@@ -293,11 +293,8 @@ class LaplacianSolver {
                                  std::to_string(common_.status) + ")");
       return;
     }
-    if (!use_cholmod_ && order_.size() == n && slots_.size() == triplets.size()) {
-      double* values = permuted_.valuePtr();
-      std::fill(values, values + permuted_.nonZeros(), 0.0);
-      for (std::size_t t = 0; t < triplets.size(); ++t)
-        if (slots_[t] >= 0) values[slots_[t]] += triplets[t].value();
+    if (!use_cholmod_ && pivots_.size() == n && slots_.size() == triplets.size()) {
+      write_values(triplets);
       ordered_ldlt_.factorize(permuted_);
       return;
     }
@@ -308,21 +305,9 @@ class LaplacianSolver {
     if (!analysed_ && !pending_order_.valid())
       pending_order_ = std::async(std::launch::async, [copy = matrix] { return nested_dissection(copy); });
     else if (pending_order_.valid())
-      order_ = pending_order_.get();
-    if (order_.size() == n) {
-      permuted_.resize(n, n);
-      permuted_.selfadjointView<Eigen::Lower>() = matrix.selfadjointView<Eigen::Lower>().twistedBy(order_);
-      permuted_.makeCompressed();
-      // Where each lower-triangle triplet lands in the permuted lower triangle (−1: upper, unused).
-      slots_.assign(triplets.size(), -1);
-      for (std::size_t t = 0; t < triplets.size(); ++t) {
-        if (triplets[t].row() < triplets[t].col()) continue;
-        const int r = order_.indices()[triplets[t].row()], c = order_.indices()[triplets[t].col()];
-        const int row = std::max(r, c), col = std::min(r, c);
-        const int* first = permuted_.innerIndexPtr() + permuted_.outerIndexPtr()[col];
-        const int* last = permuted_.innerIndexPtr() + permuted_.outerIndexPtr()[col + 1];
-        slots_[t] = static_cast<int>(std::find(first, last, row) - permuted_.innerIndexPtr());  // rows unsorted
-      }
+      pivots_ = pending_order_.get();
+    if (pivots_.size() == n) {
+      place_in_pivot_order(n, triplets);
       ordered_ldlt_.analyzePattern(permuted_);
       ordered_ldlt_.factorize(permuted_);
       return;
@@ -353,7 +338,7 @@ class LaplacianSolver {
  private:
   [[nodiscard]] Eigen::VectorXd solve_one(const Eigen::VectorXd& rhs) const {
 #ifdef SDOT_HAVE_CHOLMOD
-    if (order_.size() == rhs.size()) return order_.transpose() * Eigen::VectorXd(ordered_ldlt_.solve(order_ * rhs));
+    if (pivots_.size() == rhs.size()) return pivots_.transpose() * Eigen::VectorXd(ordered_ldlt_.solve(pivots_ * rhs));
 #endif
     return ldlt_.solve(rhs);
   }
@@ -415,30 +400,14 @@ class LaplacianSolver {
   /// (2 M unknowns: about 1 s with the slots).
   void write_in_place(Eigen::Index n, const Triplets& triplets) {
     if (in_place_) {
-      double* values = permuted_.valuePtr();
-      std::fill(values, values + permuted_.nonZeros(), 0.0);
-      for (std::size_t t = 0; t < triplets.size(); ++t) values[slots_[t]] += triplets[t].value();
+      write_values(triplets);
       return;
     }
-    pivots_.resize(n);  // maps an unknown to its pivot position
+    pivots_.resize(n);
     const int* pivot_order = static_cast<const int*>(factor_->Perm);
     for (Eigen::Index k = 0; k < n; ++k) pivots_.indices()[pivot_order[k]] = static_cast<int>(k);
     cholmod_free_factor(&factor_, &common_);
-    std::vector<Eigen::Triplet<double>> moved;
-    moved.reserve(triplets.size());
-    for (const auto& t : triplets) {
-      const int r = pivots_.indices()[t.row()], c = pivots_.indices()[t.col()];
-      moved.emplace_back(std::max(r, c), std::min(r, c), t.value());
-    }
-    permuted_.resize(n, n);
-    permuted_.setFromTriplets(moved.begin(), moved.end());
-    permuted_.makeCompressed();
-    slots_.resize(triplets.size());
-    for (std::size_t t = 0; t < moved.size(); ++t) {
-      const int* first = permuted_.innerIndexPtr() + permuted_.outerIndexPtr()[moved[t].col()];
-      const int* last = permuted_.innerIndexPtr() + permuted_.outerIndexPtr()[moved[t].col() + 1];
-      slots_[t] = static_cast<int>(std::find(first, last, moved[t].row()) - permuted_.innerIndexPtr());
-    }
+    place_in_pivot_order(n, triplets);
     // already postordered: the analysis in natural order keeps it
     common_.method[0].ordering = CHOLMOD_NATURAL;
     common_.postorder = 0;
@@ -446,6 +415,37 @@ class LaplacianSolver {
     view.stype = -1;
     factor_ = cholmod_analyze(&view, &common_);
     in_place_ = true;
+  }
+
+  /// permuted_: the lower triangle of P A Pᵀ, A given by its triplets (the lower ones are read);
+  /// slots_: where each triplet's value goes in it (−1: an upper one, unused).
+  void place_in_pivot_order(Eigen::Index n, const Triplets& triplets) {
+    std::vector<Eigen::Triplet<double>> moved;
+    moved.reserve(triplets.size());
+    for (const auto& t : triplets) {
+      if (t.row() < t.col()) continue;
+      const int r = pivots_.indices()[t.row()], c = pivots_.indices()[t.col()];
+      moved.emplace_back(std::max(r, c), std::min(r, c), t.value());
+    }
+    permuted_.resize(n, n);
+    permuted_.setFromTriplets(moved.begin(), moved.end());
+    permuted_.makeCompressed();
+    slots_.assign(triplets.size(), -1);
+    for (std::size_t t = 0, m = 0; t < triplets.size(); ++t) {
+      if (triplets[t].row() < triplets[t].col()) continue;
+      const auto& placed = moved[m++];
+      const int* first = permuted_.innerIndexPtr() + permuted_.outerIndexPtr()[placed.col()];
+      const int* last = permuted_.innerIndexPtr() + permuted_.outerIndexPtr()[placed.col() + 1];
+      slots_[t] = static_cast<int>(std::find(first, last, placed.row()) - permuted_.innerIndexPtr());
+    }
+  }
+
+  /// The values of a system of the same triplets as place_in_pivot_order's, in place.
+  void write_values(const Triplets& triplets) {
+    double* values = permuted_.valuePtr();
+    std::fill(values, values + permuted_.nonZeros(), 0.0);
+    for (std::size_t t = 0; t < triplets.size(); ++t)
+      if (slots_[t] >= 0) values[slots_[t]] += triplets[t].value();
   }
 #endif
 
@@ -456,10 +456,10 @@ class LaplacianSolver {
   cholmod_common common_{};
   bool common_started_ = false;
   cholmod_factor* factor_ = nullptr;
-  bool in_place_ = false;                                                 // write_in_place
-  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> pivots_;  // in place: P
+  bool in_place_ = false;  // write_in_place
   std::future<Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>> pending_order_;
-  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> order_;
+  // P, mapping an unknown to its pivot position: METIS's (Eigen's path) or CHOLMOD's (in place)
+  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> pivots_;
   Eigen::SparseMatrix<double> permuted_;  // lower triangle of P A Pᵀ
   std::vector<int> slots_;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> ordered_ldlt_;
