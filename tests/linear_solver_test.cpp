@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <thread>
 
 #include "sdot/linear_solver.hpp"
 #include "sdot/solver.hpp"
@@ -66,6 +67,32 @@ TEST(LinearSolver, AutomaticSolvesThroughTheTrialAndPatternChanges) {
   }
   std::printf("  the trial chose %s\n", sdot::has_cholmod() && solver_uses_cholmod(solver) ? "CHOLMOD" : "LDLT");
 }
+
+#ifdef SDOT_HAVE_CHOLMOD
+/// The team size of a parallel region asking for `requested` threads, opened on this thread.
+int team_size(int requested) {
+  int size = 0;
+#pragma omp parallel num_threads(requested)
+  {
+#pragma omp single
+    size = omp_get_num_threads();
+  }
+  return size;
+}
+
+TEST(LinearSolver, SerialOpenMpRegionsSerialiseOnlyTheirOwnThreadWhileTheyLive) {
+  ASSERT_EQ(team_size(3), 3);  // CHOLMOD's teams ask for a fixed count, whatever the machine
+  int other_thread_team = 0;
+  {
+    const sdot::detail::SerialOpenMpRegions serial;
+    EXPECT_EQ(team_size(3), 1);
+    std::thread other([&] { other_thread_team = team_size(3); });
+    other.join();
+  }
+  EXPECT_EQ(other_thread_team, 3);
+  EXPECT_EQ(team_size(3), 3);  // restored
+}
+#endif
 
 /// A Newton-like matrix: a k × k grid Laplacian whose edge weights span six orders of magnitude
 /// (log-uniform), pinned at unknown 0 as the Newton driver pins its gauge.

@@ -286,7 +286,11 @@ class LaplacianSolver {
       Triplets().swap(triplets);  // released before the factorisation (2 M unknowns: 240 MB)
       cholmod_sparse view = Eigen::viewAsCholmod(in_place_ ? permuted_ : first_system);
       view.stype = -1;
-      const bool factorised = factor_ && cholmod_factorize(&view, factor_, &common_) && common_.status == CHOLMOD_OK;
+      bool factorised = false;
+      {
+        const sdot::detail::SerialOpenMpRegions serial;  // CHOLMOD's own teams: see there
+        factorised = factor_ && cholmod_factorize(&view, factor_, &common_) && common_.status == CHOLMOD_OK;
+      }
       sdot::detail::set_blas_threads(1);
       if (!factorised)
         throw std::runtime_error("the Tutte system could not be factorised (CHOLMOD status " +
