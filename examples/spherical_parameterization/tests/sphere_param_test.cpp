@@ -620,6 +620,27 @@ TEST(Stages, StretchReweightingOpensADeeplyCrushedTubeInFewSolves) {
   EXPECT_LE(r.flips, m.faces.size() / 200);
 }
 
+TEST(Stages, CrushingIsJudgedOnTheLastMapWhenTheReweightingsRunOut) {
+  // With no (or too few) reweightings allowed, the crushing the caller's fallbacks judge is that
+  // of the map returned: a capsule 40 radii long went to the OT crushed by e^-33 when it was not
+  // (120k vertices: 220 s and 2,306 faces left flipped).
+  const Mesh m = test::capsule(48, 40);
+  const Topology topo(m);
+  const auto targets = face_targets(m, {});
+  for (int allowed : {0, 1}) {
+    bool crushed = false, below_rounding = true;
+    int reweightings = -1;
+    (void)tutte_sphere_map(m, topo, targets, allowed, &reweightings, &crushed, false, &below_rounding);
+    EXPECT_EQ(reweightings, allowed);
+    EXPECT_TRUE(crushed) << allowed << " reweightings";
+  }
+  PipelineOptions options;
+  options.max_reweightings = 0;
+  const auto r = run(test::capsule(21, 60), options);
+  EXPECT_EQ(r.pipeline.fallbacks.hierarchical_initial_map, 1);
+  EXPECT_EQ(r.metrics.flips, 0u);
+}
+
 TEST(Stages, PatchRepairReembedsFoldedDisk) {
   const Mesh m = test::icosphere(4);
   const Topology topo(m);
