@@ -1377,8 +1377,8 @@ namespace sphparam {
 namespace {
 
 /// One level of the hierarchy: the faces before its collapses and the collapses (removed vertex,
-/// the neighbour it went into). The removed vertices are 3 edges apart, so the collapses and
-/// their reversal are independent of each other.
+/// the neighbour it went into). No two removed vertices are neighbours, so each one's fan is the
+/// same in `faces` as at its collapse, and their reversals are independent of each other.
 struct CollapseLevel {
   std::vector<Face> faces;
   std::vector<std::pair<int, int>> collapses;
@@ -1451,10 +1451,9 @@ std::vector<Vec3> hierarchical_sphere_map(const Mesh& mesh, std::size_t base_ver
     std::fill(marked.begin(), marked.end(), 0);
     CollapseLevel level;
     for (int v : order) {
+      // v and its neighbours are marked: no two removed vertices are neighbours, so each one's
+      // fan is the same at its collapse as in the level's faces
       if (!alive[u(v)] || marked[u(v)] || nbrs[u(v)].size() < 3) continue;
-      bool free = true;
-      for (int w : nbrs[u(v)]) free = free && !marked[u(w)];
-      if (!free) continue;
       // the neighbour along the shortest edge that keeps the mesh a manifold: exactly two common
       // neighbours (the link condition), both of degree > 3, and no vertex of degree above 12
       int into = -1;
@@ -1472,6 +1471,21 @@ std::vector<Vec3> hierarchical_sphere_map(const Mesh& mesh, std::size_t base_ver
       level.collapses.emplace_back(v, into);
       marked[u(v)] = 1;
       for (int w : nbrs[u(v)]) marked[u(w)] = 1;
+      // The collapse in the neighbour lists, so that the next collapses' link conditions and
+      // degrees see it: v's neighbours become neighbours of `into`.
+      auto& target = nbrs[u(into)];
+      target.erase(std::lower_bound(target.begin(), target.end(), v));
+      for (int x : nbrs[u(v)]) {
+        if (x == into) continue;
+        auto& around = nbrs[u(x)];
+        around.erase(std::lower_bound(around.begin(), around.end(), v));
+        const auto at = std::lower_bound(around.begin(), around.end(), into);
+        if (at == around.end() || *at != into) {
+          around.insert(at, into);
+          target.insert(std::lower_bound(target.begin(), target.end(), x), x);
+        }
+      }
+      nbrs[u(v)].clear();
     }
     if (level.collapses.size() * 200 < alive_count) break;  // nothing left worth a level
     level.faces = faces;
@@ -1598,7 +1612,7 @@ std::vector<Vec3> hierarchical_sphere_map(const Mesh& mesh, std::size_t base_ver
         ++info->unplaced;
       }
     }
-    relax(level.faces, 4);
+    relax(level.faces, 24);
   }
   if (info) info->levels = static_cast<int>(levels.size());
   return s;

@@ -77,13 +77,13 @@ struct HierarchyInfo {
 /// Coarse-to-fine initial map for meshes whose Tutte map is crushed below rounding (long thin
 /// tubes: a harmonic map crushes a tube of length L and radius r by about e^(-L/r), e^-100 at
 /// L = 100 r, and positive weights on a triangulated tube cannot make it less than about
-/// e^(-0.58 L/r)). Levels of independent edge collapses (edges whose vertex normals agree first,
-/// removed vertices 3 edges apart) reduce the mesh to `base_vertices` or until the collapses
+/// e^(-0.58 L/r)). Levels of edge collapses (edges whose vertex normals agree first, no two
+/// removed vertices neighbours) reduce the mesh to `base_vertices` or until the collapses
 /// stall; each collapse adds the removed vertex's area share to the vertex it goes into. A
 /// 4-vertex base is mapped to the regular tetrahedron, a larger one by Tutte with uniform
 /// weights; then every level puts its removed vertices back inside the wedge of their collapsed
 /// edge, at a place that inverts none of their faces (`HierarchyInfo::unplaced` counts the
-/// others), and runs 4 sweeps of the flip-free area optimization towards the level's area shares.
+/// others), and runs 24 sweeps of the flip-free area optimization towards the level's area shares.
 std::vector<Vec3> hierarchical_sphere_map(const Mesh& mesh, std::size_t base_vertices = 4,
                                           HierarchyInfo* info = nullptr);
 
