@@ -830,6 +830,30 @@ TEST(AreaOptimizer, RepeatedRunsMatchOptimizeAreaAndCheckThePositions) {
   }
 }
 
+TEST(AreaOptimizer, OnlyTheStartingVerticesMoveInTheFirstSweep) {
+  // start_active and the positions are in the mesh's numbering, whatever order the optimizer
+  // keeps its tables in
+  const Mesh m = test::ellipsoid(3, 1, 1.3, 2);
+  const Topology topo(m);
+  const std::vector<double> targets = face_targets(m, {});
+  std::vector<Vec3> start = tutte_sphere_map(m, topo, targets, 0);
+  mobius_balance(start, vertex_targets(m, targets));
+  const AreaOptimizer optimizer(m, topo, targets);
+  for (const std::size_t chosen : {std::size_t{0}, m.vertices.size() / 2 + 3, m.vertices.size() - 1}) {
+    std::vector<Vec3> s = start;
+    OptimizeOptions o;
+    o.max_sweeps = 1;
+    o.start_active.assign(m.vertices.size(), 0);
+    o.start_active[chosen] = 1;
+    EXPECT_EQ(optimizer.run(s, o).visits, 1u);
+    for (std::size_t v = 0; v < s.size(); ++v)
+      if (v == chosen)
+        EXPECT_NE(s[v], start[v]) << "vertex " << v;
+      else
+        EXPECT_EQ(s[v], start[v]) << "vertex " << v << " moved, " << chosen << " was the one to";
+  }
+}
+
 TEST(AreaOptimizer, OverRelaxationCorrectsASmoothAreaErrorFaster) {
   // an ellipsoid 3 times longer than wide, its vertices projected radially: the area error is
   // smooth and spans the whole sphere, the error the untangling's later chunks are left with
