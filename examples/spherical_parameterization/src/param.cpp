@@ -1103,54 +1103,20 @@ struct Corner {
   double cot_i, cot_j, cot_k;
 };
 
-/// The optimizer's vertex order: breadth first over the mesh graph, so that the neighbours of
-/// the vertices visited one after another are near each other in memory. The meshes' own orders
-/// can put neighbours far apart (spiky_120k, a subdivided sphere: the untangling's sweeps 30 %
-/// slower in its order, which misses the cache on the neighbours' positions).
-std::vector<int> breadth_first_order(const Topology& topo, std::size_t nv) {
-  std::vector<int> order;
-  order.reserve(nv);
-  std::vector<char> seen(nv, 0);
-  for (std::size_t root = 0; root < nv; ++root) {
-    if (seen[root]) continue;
-    seen[root] = 1;
-    order.push_back(static_cast<int>(root));
-    for (std::size_t head = order.size() - 1; head < order.size(); ++head) {
-      const auto v = u(order[head]);
-      for (int k = topo.nbr_offsets[v]; k < topo.nbr_offsets[v + 1]; ++k) {
-        const int w = topo.nbrs[u(k)];
-        if (!seen[u(w)]) seen[u(w)] = 1, order.push_back(w);
-      }
-    }
-  }
-  return order;
-}
-
-/// Corners of every vertex in the optimizer's order `old_of` (CSR offsets `offsets`), each
-/// vertex's in the order of topo.vfaces, their vertices numbered in that order (`new_of`).
-std::vector<Corner> corner_table(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets,
-                                 const std::vector<int>& old_of, const std::vector<int>& new_of,
-                                 std::vector<int>& offsets) {
-  const std::size_t nv = old_of.size();
-  offsets.assign(nv + 1, 0);
-  for (std::size_t a = 0; a < nv; ++a) {
-    const auto i = u(old_of[a]);
-    offsets[a + 1] = offsets[a] + (topo.face_offsets[i + 1] - topo.face_offsets[i]);
-  }
+/// Corners of every vertex, in the order of topo.vfaces (CSR offsets topo.face_offsets).
+std::vector<Corner> corner_table(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets) {
   std::vector<Corner> corners(topo.vfaces.size());
+  const auto nv = static_cast<std::ptrdiff_t>(topo.face_offsets.size()) - 1;
 #pragma omp parallel for schedule(static)
-  for (std::ptrdiff_t vertex = 0; vertex < static_cast<std::ptrdiff_t>(nv); ++vertex) {
-    const auto a = u(vertex);
-    const auto i = u(old_of[a]);
-    int out = offsets[a];
-    for (int q = topo.face_offsets[i]; q < topo.face_offsets[i + 1]; ++q, ++out) {
+  for (std::ptrdiff_t vertex = 0; vertex < nv; ++vertex) {
+    const auto i = u(vertex);
+    for (int q = topo.face_offsets[i]; q < topo.face_offsets[i + 1]; ++q) {
       const int f = topo.vfaces[u(q)];
       const auto& t = mesh.faces[u(f)];
       const int c = t[0] == static_cast<int>(i) ? 0 : (t[1] == static_cast<int>(i) ? 1 : 2);
       const int j = t[u((c + 1) % 3)], k = t[u((c + 2) % 3)];
       const Vec3 &pi = mesh.vertices[i], &pj = mesh.vertices[u(j)], &pk = mesh.vertices[u(k)];
-      corners[u(out)] = {new_of[u(j)],          new_of[u(k)],          targets[u(f)],
-                         cot_angle(pi, pj, pk), cot_angle(pj, pk, pi), cot_angle(pk, pi, pj)};
+      corners[u(q)] = {j, k, targets[u(f)], cot_angle(pi, pj, pk), cot_angle(pj, pk, pi), cot_angle(pk, pi, pj)};
     }
   }
   return corners;
@@ -1165,10 +1131,10 @@ struct LocalEval {
 
 /// Energy of the faces around vertex i with vertex i at position x.
 /// Area term log²(A/T) with A the signed spherical area; MIPS term on the chordal triangle.
-LocalEval local_energy(const std::vector<int>& offsets, const std::vector<Corner>& corners, const std::vector<Vec3>& s,
-                       int i, const Vec3& x, double lambda, bool with_derivatives, double eps = 0) {
+LocalEval local_energy(const Topology& topo, const std::vector<Corner>& corners, const std::vector<Vec3>& s, int i,
+                       const Vec3& x, double lambda, bool with_derivatives, double eps = 0) {
   LocalEval e;
-  for (int q = offsets[u(i)]; q < offsets[u(i) + 1]; ++q) {
+  for (int q = topo.face_offsets[u(i)]; q < topo.face_offsets[u(i) + 1]; ++q) {
     const Corner& corner = corners[u(q)];
     const Vec3& pj = s[u(corner.j)];
     const Vec3& pk = s[u(corner.k)];
@@ -1252,40 +1218,17 @@ int sweep_limit(const OptimizeOptions& options) {
   return options.angle_weight > default_angle_weight ? 2000 : 200;
 }
 
-/// Everything a sweep reads, with the vertices in breadth-first order (`old_of`: the mesh's
-/// number of each; `new_of`, the inverse). The colours are those of the mesh's order, so the
-/// results are the same bits whatever the layout: vertices of one colour share no face, and the
-/// order of their moves within a colour does not matter.
 struct AreaOptimizer::Tables {
-  std::vector<int> old_of, new_of;
-  std::vector<int> corner_offsets;
   std::vector<Corner> corners;
-  std::vector<int> nbr_offsets, nbrs;
   std::vector<std::vector<int>> colours;
-
-  Tables(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets) {
-    const std::size_t nv = mesh.vertices.size();
-    old_of = breadth_first_order(topo, nv);
-    new_of.assign(nv, -1);
-    for (std::size_t a = 0; a < nv; ++a) new_of[u(old_of[a])] = static_cast<int>(a);
-    corners = corner_table(mesh, topo, targets, old_of, new_of, corner_offsets);
-    nbr_offsets.assign(nv + 1, 0);
-    nbrs.reserve(topo.nbrs.size());
-    for (std::size_t a = 0; a < nv; ++a) {
-      const auto i = u(old_of[a]);
-      for (int k = topo.nbr_offsets[i]; k < topo.nbr_offsets[i + 1]; ++k) nbrs.push_back(new_of[u(topo.nbrs[u(k)])]);
-      nbr_offsets[a + 1] = static_cast<int>(nbrs.size());
-    }
-    colours = colour_classes(topo, nv);
-    for (auto& colour : colours) {
-      for (int& v : colour) v = new_of[u(v)];
-      std::sort(colour.begin(), colour.end());
-    }
-  }
 };
 
 AreaOptimizer::AreaOptimizer(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets)
-    : mesh_(mesh), targets_(targets), tables_(std::make_unique<Tables>(mesh, topo, targets)) {}
+    : mesh_(mesh),
+      topo_(topo),
+      targets_(targets),
+      tables_(std::make_unique<Tables>(
+          Tables{corner_table(mesh, topo, targets), colour_classes(topo, mesh.vertices.size())})) {}
 
 AreaOptimizer::~AreaOptimizer() = default;
 
@@ -1304,11 +1247,11 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
     throw std::invalid_argument("positions: " + std::to_string(s.size()) + " for a mesh of " +
                                 std::to_string(mesh_.vertices.size()) + " vertices");
   const Mesh& mesh = mesh_;
+  const Topology& topo = topo_;
   const std::vector<double>& targets = targets_;
-  const Tables& tables = *tables_;
   const auto start = std::chrono::steady_clock::now();
   const std::size_t nv = s.size();
-  const std::vector<Corner>& corners = tables.corners;
+  const std::vector<Corner>& corners = tables_->corners;
   // The faces' terms in parallel, summed in face order: the same bits on any thread count.
   std::vector<double> face_energy(mesh.faces.size());
   auto total_energy = [&] {
@@ -1335,15 +1278,11 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
   std::vector<double> mu(nv, 1e-3);  // per-vertex Levenberg damping
   // Active set: a vertex is revisited while it or a neighbour moved noticeably.
   std::vector<char> active(nv, 1), next_active(nv, 0);
-  if (options.start_active.size() == nv)
-    for (std::size_t a = 0; a < nv; ++a) active[a] = options.start_active[u(tables.old_of[a])];
-  // The positions in the tables' order (`s` is in the mesh's).
-  std::vector<Vec3> p(nv);
-  for (std::size_t a = 0; a < nv; ++a) p[a] = s[u(tables.old_of[a])];
+  if (options.start_active.size() == nv) active = options.start_active;
   // Gauss–Seidel, one colour class at a time: vertices of one colour share no face, so their
   // moves are independent and run in parallel. Small classes run serially: a parallel region per
   // class and sweep costs more than it saves there, and much more when the machine is loaded.
-  const std::vector<std::vector<int>>& colours = tables.colours;
+  const std::vector<std::vector<int>>& colours = tables_->colours;
   const int max_sweeps = sweep_limit(options);
   for (int sweep = 0; sweep < max_sweeps; ++sweep) {
     std::size_t visited = 0;
@@ -1356,9 +1295,8 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
         const auto iv = u(i);
         if (!active[iv]) continue;
         ++visited;
-        const Vec3 x = p[iv];
-        const LocalEval e0 =
-            local_energy(tables.corner_offsets, corners, p, i, x, options.angle_weight, true, options.regularization);
+        const Vec3 x = s[iv];
+        const LocalEval e0 = local_energy(topo, corners, s, i, x, options.angle_weight, true, options.regularization);
         if (!e0.valid) continue;
         const Vec3 t1 = (std::abs(x.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(x).normalized();
         const Vec3 t2 = x.cross(t1);
@@ -1374,16 +1312,16 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
           const double relaxation = tries == 0 ? options.over_relaxation : 1.0;
           const Eigen::Vector2d d = -relaxation * Hd.ldlt().solve(grad2);
           const Vec3 y = (x + P * d).normalized();
-          const LocalEval e1 = local_energy(tables.corner_offsets, corners, p, i, y, options.angle_weight, false,
-                                            options.regularization);
+          const LocalEval e1 =
+              local_energy(topo, corners, s, i, y, options.angle_weight, false, options.regularization);
           if (e1.valid && e1.energy < e0.energy) {
-            p[iv] = y;
+            s[iv] = y;
             accepted = true;
             if (e0.energy - e1.energy >
                 options.activity_threshold * (std::min(e0.energy, mean_vertex_energy) + 1e-12)) {
               std::atomic_ref<char>(next_active[iv]).store(1, std::memory_order_relaxed);
-              for (int k = tables.nbr_offsets[iv]; k < tables.nbr_offsets[iv + 1]; ++k)
-                std::atomic_ref<char>(next_active[u(tables.nbrs[u(k)])]).store(1, std::memory_order_relaxed);
+              for (int k = topo.nbr_offsets[iv]; k < topo.nbr_offsets[iv + 1]; ++k)
+                std::atomic_ref<char>(next_active[u(topo.nbrs[u(k)])]).store(1, std::memory_order_relaxed);
             }
             break;
           }
@@ -1398,7 +1336,6 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (visited == 0 || elapsed > options.time_budget_s) break;
   }
-  for (std::size_t a = 0; a < nv; ++a) s[u(tables.old_of[a])] = p[a];
   result.energy_end = total_energy();
   if (result.sweeps == 0) result.energy_end = result.energy_start;
   return result;
