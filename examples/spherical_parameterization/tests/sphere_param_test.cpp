@@ -831,8 +831,8 @@ TEST(AreaOptimizer, RepeatedRunsMatchOptimizeAreaAndCheckThePositions) {
 }
 
 TEST(AreaOptimizer, OnlyTheStartingVerticesMoveInTheFirstSweep) {
-  // start_active and the positions are in the mesh's numbering, whatever order the optimizer
-  // keeps its tables in
+  // one sweep from a single active vertex moves that vertex and nothing else (start_active and
+  // the positions share the mesh's numbering)
   const Mesh m = test::ellipsoid(3, 1, 1.3, 2);
   const Topology topo(m);
   const std::vector<double> targets = face_targets(m, {});
