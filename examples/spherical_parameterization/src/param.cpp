@@ -1151,8 +1151,8 @@ LocalEval local_energy(const Topology& topo, const std::vector<Corner>& corners,
       const double r = std::log(Ae / T);
       e.energy += r * r;
       if (!with_derivatives) continue;
-      const Vec3 dA = 2 * (D * jk - N * (pj + pk)) / (N * N + D * D);
-      const Vec3 dr = 0.5 * (1 + A / root) * dA / Ae;
+      // dA/dx = 2 (D jk − N (pj + pk)) / (N² + D²), dr = (1 + A/root)/2 · dA/Ae: one division
+      const Vec3 dr = ((1 + A / root) / ((N * N + D * D) * Ae)) * (D * jk - N * (pj + pk));
       e.grad += 2 * r * dr;
       e.gn += 2 * dr * dr.transpose();
       continue;
@@ -1177,13 +1177,14 @@ LocalEval local_energy(const Topology& topo, const std::vector<Corner>& corners,
     const double mips = C / (2 * A2) - 1;  // = (σ1/σ2 + σ2/σ1)/2 − 1 ≥ 0
     e.energy += r * r + lambda * mips;
     if (!with_derivatives) continue;
-    const Vec3 dA = 2 * (D * jk - N * (pj + pk)) / (N * N + D * D);
-    const Vec3 dr = dA / A;
+    // dr = dA/dx / A (dA/dx as above); one division for each vector, not one per coordinate
+    const Vec3 dr = (2 / ((N * N + D * D) * A)) * (D * jk - N * (pj + pk));
     e.grad += 2 * r * dr;
     e.gn += 2 * dr * dr.transpose();
     const Vec3 dC = -2 * cj * ek - 2 * ck * ej;
-    const Vec3 dA2 = (pj - pk).cross(nrm / A2);
-    const Vec3 dm = (dC * A2 - C * dA2) / (2 * A2 * A2);
+    const double inv_A2 = 1 / A2;
+    const Vec3 dA2 = inv_A2 * (pj - pk).cross(nrm);
+    const Vec3 dm = (0.5 * inv_A2 * inv_A2) * (dC * A2 - C * dA2);
     e.grad += lambda * dm;
     // crude curvature of the MIPS term: isotropic, from its scale C / A2 per squared length
     e.gn += lambda * (std::abs(ci) + std::abs(cj) + std::abs(ck) + 1) / A2 * Eigen::Matrix3d::Identity();
@@ -1231,6 +1232,18 @@ AreaOptimizer::AreaOptimizer(const Mesh& mesh, const Topology& topo, const std::
           Tables{corner_table(mesh, topo, targets), colour_classes(topo, mesh.vertices.size())})) {}
 
 AreaOptimizer::~AreaOptimizer() = default;
+
+double vertex_energy(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets,
+                     const std::vector<Vec3>& s, int vertex, const Vec3& x, const OptimizeOptions& options,
+                     Vec3* gradient) {
+  if (vertex < 0 || u(vertex) >= s.size() || s.size() != mesh.vertices.size())
+    throw std::invalid_argument("vertex " + std::to_string(vertex) + " of " + std::to_string(s.size()) +
+                                " positions for a mesh of " + std::to_string(mesh.vertices.size()) + " vertices");
+  const LocalEval e = local_energy(topo, corner_table(mesh, topo, targets), s, vertex, x, options.angle_weight,
+                                   gradient != nullptr, options.regularization);
+  if (gradient) *gradient = e.grad;
+  return e.valid ? e.energy : std::numeric_limits<double>::quiet_NaN();
+}
 
 OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets,
                              std::vector<Vec3>& s, const OptimizeOptions& options) {
@@ -1308,9 +1321,12 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
         double m = mu[iv];
         bool accepted = false;
         for (int tries = 0; tries < 6; ++tries) {
-          const Eigen::Matrix2d Hd = H + m * scale * Eigen::Matrix2d::Identity();
+          // the damped 2×2 system (symmetric positive definite) by Cramer's rule
+          const double h00 = H(0, 0) + m * scale, h11 = H(1, 1) + m * scale, h01 = 0.5 * (H(0, 1) + H(1, 0));
           const double relaxation = tries == 0 ? options.over_relaxation : 1.0;
-          const Eigen::Vector2d d = -relaxation * Hd.ldlt().solve(grad2);
+          const double factor = -relaxation / (h00 * h11 - h01 * h01);
+          const Eigen::Vector2d d(factor * (h11 * grad2.x() - h01 * grad2.y()),
+                                  factor * (h00 * grad2.y() - h01 * grad2.x()));
           const Vec3 y = (x + P * d).normalized();
           const LocalEval e1 =
               local_energy(topo, corners, s, i, y, options.angle_weight, false, options.regularization);

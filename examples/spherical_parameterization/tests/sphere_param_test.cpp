@@ -830,6 +830,42 @@ TEST(AreaOptimizer, RepeatedRunsMatchOptimizeAreaAndCheckThePositions) {
   }
 }
 
+TEST(AreaOptimizer, LocalEnergyGradientMatchesFiniteDifferences) {
+  // the gradient each move takes its Gauss–Newton step from: area term, MIPS term and the
+  // regularised (untangling) area term, at vertices of a map that is not yet area-preserving
+  const Mesh m = test::ellipsoid(2, 1, 1.3, 2);
+  const Topology topo(m);
+  const std::vector<double> targets = face_targets(m, {});
+  std::vector<Vec3> s = tutte_sphere_map(m, topo, targets, 0);
+  mobius_balance(s, vertex_targets(m, targets));
+  for (const auto& [lambda, eps] : {std::pair{0.0, 0.0}, {0.005, 0.0}, {5.0, 0.0}, {0.0, 0.1}, {0.0, 1e-3}}) {
+    OptimizeOptions o;
+    o.angle_weight = lambda, o.regularization = eps;
+    for (int vertex : {0, 17, static_cast<int>(m.vertices.size()) - 1}) {
+      // off the sphere too: the energy is a function of x in R³
+      const Vec3 x = 1.01 * s[static_cast<std::size_t>(vertex)];
+      Vec3 gradient;
+      const double energy = vertex_energy(m, topo, targets, s, vertex, x, o, &gradient);
+      ASSERT_TRUE(std::isfinite(energy));
+      for (int k = 0; k < 3; ++k) {
+        const double h = 1e-7;
+        Vec3 plus = x, minus = x;
+        plus[k] += h, minus[k] -= h;
+        const double numeric = (vertex_energy(m, topo, targets, s, vertex, plus, o) -
+                                vertex_energy(m, topo, targets, s, vertex, minus, o)) /
+                               (2 * h);
+        EXPECT_NEAR(gradient[k], numeric, 1e-5 * std::max(1.0, std::abs(numeric)))
+            << "lambda " << lambda << ", eps " << eps << ", vertex " << vertex << ", coordinate " << k;
+      }
+    }
+  }
+  // an inverted face: no energy without the regularisation
+  Vec3 gradient;
+  const Vec3 across = -s[0];
+  EXPECT_TRUE(std::isnan(vertex_energy(m, topo, targets, s, 0, across, {}, &gradient)));
+  EXPECT_THROW(vertex_energy(m, topo, targets, s, -1, across, {}), std::invalid_argument);
+}
+
 TEST(AreaOptimizer, OnlyTheStartingVerticesMoveInTheFirstSweep) {
   // one sweep from a single active vertex moves that vertex and nothing else (start_active and
   // the positions share the mesh's numbering)
