@@ -794,14 +794,29 @@ TEST(AngleWeight, InvalidWeightIsRejected) {
                          [](OptimizeOptions& o, double weight) { o.angle_weight = weight; });
 }
 
+namespace {
+/// An ellipsoid's mesh, its targets and its balanced Tutte map: a flip-free start that is not yet
+/// area-preserving, for the optimizer's tests.
+struct BalancedTutteStart {
+  Mesh m;
+  Topology topo;
+  std::vector<double> targets;
+  std::vector<Vec3> map;
+  explicit BalancedTutteStart(int level)
+      : m(test::ellipsoid(level, 1, 1.3, 2)),
+        topo(m),
+        targets(face_targets(m, {})),
+        map(tutte_sphere_map(m, topo, targets, 0)) {
+    mobius_balance(map, vertex_targets(m, targets));
+  }
+};
+}  // namespace
+
 TEST(AreaOptimizer, RepeatedRunsMatchOptimizeAreaAndCheckThePositions) {
   // as in the pipeline: regularised runs from a folded start (the untangling's chunks), then
   // flip-free runs, all on one optimizer
-  const Mesh m = test::ellipsoid(3, 1, 1.3, 2);
-  const Topology topo(m);
-  const std::vector<double> targets = face_targets(m, {});
-  std::vector<Vec3> tutte = tutte_sphere_map(m, topo, targets, 0);
-  mobius_balance(tutte, vertex_targets(m, targets));
+  const BalancedTutteStart start(3);
+  const auto& [m, topo, targets, tutte] = start;
   ASSERT_EQ(count_flips(m, tutte), 0u);
   std::vector<Vec3> folded = tutte;
   for (std::size_t i = 0; i < folded.size(); i += 7) folded[i] = (folded[i] + Vec3(0.3, -0.2, 0.1)).normalized();
@@ -833,11 +848,8 @@ TEST(AreaOptimizer, RepeatedRunsMatchOptimizeAreaAndCheckThePositions) {
 TEST(AreaOptimizer, LocalEnergyGradientMatchesFiniteDifferences) {
   // the gradient each move takes its Gauss–Newton step from: area term, MIPS term and the
   // regularised (untangling) area term, at vertices of a map that is not yet area-preserving
-  const Mesh m = test::ellipsoid(2, 1, 1.3, 2);
-  const Topology topo(m);
-  const std::vector<double> targets = face_targets(m, {});
-  std::vector<Vec3> s = tutte_sphere_map(m, topo, targets, 0);
-  mobius_balance(s, vertex_targets(m, targets));
+  const BalancedTutteStart start(2);
+  const auto& [m, topo, targets, s] = start;
   for (const auto& [lambda, eps] : {std::pair{0.0, 0.0}, {0.005, 0.0}, {5.0, 0.0}, {0.0, 0.1}, {0.0, 1e-3}}) {
     OptimizeOptions o;
     o.angle_weight = lambda, o.regularization = eps;
@@ -869,11 +881,8 @@ TEST(AreaOptimizer, LocalEnergyGradientMatchesFiniteDifferences) {
 TEST(AreaOptimizer, OnlyTheStartingVerticesMoveInTheFirstSweep) {
   // one sweep from a single active vertex moves that vertex and nothing else (start_active and
   // the positions share the mesh's numbering)
-  const Mesh m = test::ellipsoid(3, 1, 1.3, 2);
-  const Topology topo(m);
-  const std::vector<double> targets = face_targets(m, {});
-  std::vector<Vec3> start = tutte_sphere_map(m, topo, targets, 0);
-  mobius_balance(start, vertex_targets(m, targets));
+  const BalancedTutteStart tutte(3);
+  const auto& [m, topo, targets, start] = tutte;
   const AreaOptimizer optimizer(m, topo, targets);
   for (const std::size_t chosen : {std::size_t{0}, m.vertices.size() / 2 + 3, m.vertices.size() - 1}) {
     std::vector<Vec3> s = start;
