@@ -1233,14 +1233,13 @@ AreaOptimizer::AreaOptimizer(const Mesh& mesh, const Topology& topo, const std::
 
 AreaOptimizer::~AreaOptimizer() = default;
 
-double vertex_energy(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets,
-                     const std::vector<Vec3>& s, int vertex, const Vec3& x, const OptimizeOptions& options,
-                     Vec3* gradient) {
-  if (vertex < 0 || u(vertex) >= s.size() || s.size() != mesh.vertices.size())
+double AreaOptimizer::vertex_energy(const std::vector<Vec3>& s, int vertex, const Vec3& x,
+                                    const OptimizeOptions& options, Vec3* gradient) const {
+  if (vertex < 0 || u(vertex) >= s.size() || s.size() != mesh_.vertices.size())
     throw std::invalid_argument("vertex " + std::to_string(vertex) + " of " + std::to_string(s.size()) +
-                                " positions for a mesh of " + std::to_string(mesh.vertices.size()) + " vertices");
-  const LocalEval e = local_energy(topo, corner_table(mesh, topo, targets), s, vertex, x, options.angle_weight,
-                                   gradient != nullptr, options.regularization);
+                                " positions for a mesh of " + std::to_string(mesh_.vertices.size()) + " vertices");
+  const LocalEval e = local_energy(topo_, tables_->corners, s, vertex, x, options.angle_weight, gradient != nullptr,
+                                   options.regularization);
   if (gradient) *gradient = e.grad;
   return e.valid ? e.energy : std::numeric_limits<double>::quiet_NaN();
 }
@@ -1485,13 +1484,13 @@ std::vector<Vec3> hierarchical_sphere_map(const Mesh& mesh, std::size_t base_ver
       }
       if (into < 0) continue;
       level.collapses.emplace_back(v, into);
+      // v and its neighbours marked, and the collapse made in the neighbour lists, so that the
+      // next collapses' link conditions and degrees see it: v's neighbours become `into`'s.
       marked[u(v)] = 1;
-      for (int w : nbrs[u(v)]) marked[u(w)] = 1;
-      // The collapse in the neighbour lists, so that the next collapses' link conditions and
-      // degrees see it: v's neighbours become neighbours of `into`.
       auto& target = nbrs[u(into)];
       target.erase(std::lower_bound(target.begin(), target.end(), v));
       for (int x : nbrs[u(v)]) {
+        marked[u(x)] = 1;
         if (x == into) continue;
         auto& around = nbrs[u(x)];
         around.erase(std::lower_bound(around.begin(), around.end(), v));

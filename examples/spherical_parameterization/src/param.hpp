@@ -182,14 +182,6 @@ struct OptimizeResult {
 OptimizeResult optimize_area(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets,
                              std::vector<Vec3>& s, const OptimizeOptions& options = {});
 
-/// The local energy that optimize_area lowers at each move: the terms of the faces around
-/// `vertex`, with that vertex at `x` and the others at `s`, and (when `gradient` is given) its
-/// gradient with respect to x ∈ R³, as the moves use it. NaN when one of the faces inverts or
-/// degenerates without `options.regularization`. For checking the derivatives.
-double vertex_energy(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets,
-                     const std::vector<Vec3>& s, int vertex, const Vec3& x, const OptimizeOptions& options,
-                     Vec3* gradient = nullptr);
-
 /// optimize_area for repeated calls on one mesh with one set of targets: its per-vertex tables
 /// (each vertex's faces with their targets and cotangents, and the vertex colouring) are built
 /// once instead of at every call (spiky_120k: 22 ms a call, 7 calls). `mesh`, `topo` and
@@ -201,6 +193,12 @@ class AreaOptimizer {
   AreaOptimizer(const AreaOptimizer&) = delete;
   AreaOptimizer& operator=(const AreaOptimizer&) = delete;
   OptimizeResult run(std::vector<Vec3>& s, const OptimizeOptions& options = {}) const;
+  /// The local energy each move lowers: the terms of the faces around `vertex`, with that vertex
+  /// at `x` and the others at `s`, and (when `gradient` is given) its gradient with respect to
+  /// x ∈ R³, as the moves use it. NaN when one of the faces inverts or degenerates without
+  /// `options.regularization`. For checking the derivatives.
+  double vertex_energy(const std::vector<Vec3>& s, int vertex, const Vec3& x, const OptimizeOptions& options,
+                       Vec3* gradient = nullptr) const;
 
  private:
   struct Tables;
