@@ -7,7 +7,7 @@
 
 #include "common.hpp"
 #include "registry.hpp"
-#include "sdot/detail/passive_openmp_waits.hpp"
+#include "sdot/detail/runtime_settings.hpp"
 #include "sdot/output_file.hpp"
 
 namespace {
@@ -168,7 +168,7 @@ int run_demo(const sdot::cli::Registry& registry, int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  sdot::detail::rerun_with_passive_openmp_waits(argv, "SDOT_COMMAND_REEXEC");
+  sdot::detail::rerun_with_runtime_settings(argv, "SDOT_COMMAND_REEXEC");
   sdot::cli::Registry registry;
   sdot::cli::register_geometries(registry);
   try {

@@ -434,7 +434,7 @@ TEST(Cli, BenchPrintsOneJsonLine) {
 }
 
 TEST(Cli, OpenMPThreadsWaitPassivelyUnlessToldOtherwise) {
-  // spinning waits cost a loaded machine much of its time (sdot::detail::rerun_with_passive_openmp_waits)
+  // spinning waits cost a loaded machine much of its time (sdot::detail::rerun_with_runtime_settings)
   const auto policy_of = [](const std::string& environment) {
     const auto r = run_in(environment, "bench --geometry plane --n 300 --quiet");
     EXPECT_EQ(r.exit_code, 0) << r.err;

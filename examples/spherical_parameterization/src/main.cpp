@@ -7,7 +7,7 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
-#include <sdot/detail/passive_openmp_waits.hpp>
+#include <sdot/detail/runtime_settings.hpp>
 #include <sdot/error.hpp>
 #include <sdot/output_file.hpp>
 #include <string>
@@ -130,8 +130,10 @@ std::string format_option(const std::string& option, const std::string& text) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // under load igea_134k took 12.5 s with libgomp's spinning waits and 3.6-4.2 s with passive ones
-  sdot::detail::rerun_with_passive_openmp_waits(argv, "SDOT_SPHERE_PARAM_REEXEC");
+  // Passive OpenMP waits: under load igea_134k took 12.5 s with libgomp's spinning waits and
+  // 3.6-4.2 s with passive ones. Huge pages on the heap: spiky_120k 6.0-6.1 s -> 5.3-5.4 s,
+  // most of it in the initial map's factorisations (runtime_settings.hpp).
+  sdot::detail::rerun_with_runtime_settings(argv, "SDOT_SPHERE_PARAM_REEXEC", {.heap_huge_pages = true});
 #if defined(__GLIBC__)
   // The stages allocate and free arrays of several MB many times (diagrams, Newton matrices,
   // factors, per-stage copies of the map). By default glibc maps many of them afresh and gives
@@ -221,6 +223,9 @@ int main(int argc, char** argv) {
   };
   json report;
   report["input"] = input;
+  const char* wait_policy = std::getenv("OMP_WAIT_POLICY");
+  report["runtime"] = {{"omp_wait_policy", wait_policy ? wait_policy : "default"},
+                       {"glibc_malloc_hugetlb", sdot::detail::heap_huge_pages_setting()}};
   report["output"] = output;
   auto write_report = [&] {
     if (report_path.empty()) return;

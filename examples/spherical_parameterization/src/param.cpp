@@ -267,11 +267,13 @@ class LaplacianSolver {
   void factorize(Eigen::Index n, Triplets&& triplets) {
 #ifdef SDOT_HAVE_CHOLMOD
     if (use_cholmod_) {
-      // Two BLAS threads for the supernodes, whatever the machine: OpenBLAS splits its work by
-      // thread count, so a fixed count keeps the map the same bit for bit everywhere
-      // (spiky_120k: 3 factorisations 1.78 s -> 1.28 s). One again afterwards, as sdot's
-      // solvers expect (linear_solver.hpp, use_single_threaded_blas).
-      sdot::detail::set_blas_threads(2);
+      // One BLAS thread for the supernodes, whatever the machine: OpenBLAS splits its work by
+      // thread count, so a fixed count keeps the map the same bit for bit everywhere. Two threads
+      // hand every supernode's kernels to a second thread and back, a futex wake and a
+      // sched_yield wait each, and their waiting thread then polls beside sdot's OpenMP loops;
+      // with the coarser supernodes below, one thread was as fast or faster (capsule40_120k, 16
+      // factorisations: 2.19-2.41 s against 2.49-3.20 s with two).
+      sdot::detail::set_blas_threads(1);
       // The first system in the chosen order, as CHOLMOD permutes it; from the second, the
       // permuted lower triangle in place (write_in_place).
       Eigen::SparseMatrix<double> first_system;
@@ -291,7 +293,6 @@ class LaplacianSolver {
         const sdot::detail::SerialOpenMpRegions serial;  // CHOLMOD's own teams: see there
         factorised = factor_ && cholmod_factorize(&view, factor_, &common_) && common_.status == CHOLMOD_OK;
       }
-      sdot::detail::set_blas_threads(1);
       if (!factorised)
         throw std::runtime_error("the Tutte system could not be factorised (CHOLMOD status " +
                                  std::to_string(common_.status) + ")");
@@ -356,6 +357,13 @@ class LaplacianSolver {
     const auto start = [](cholmod_common& common) {
       cholmod_start(&common);
       common.supernodal = CHOLMOD_SUPERNODAL;
+      // Coarser supernodes than CHOLMOD's defaults (nrelax 4, 16, 48; zrelax 0.8, 0.1, 0.05): a
+      // few more explicit zeros, but a third of the supernodes, each of which costs a BLAS call
+      // per update and, in SuiteSparse 5, an OpenMP region (a futex wake even on one thread).
+      // capsule40_120k, 16 factorisations: 11,840 supernodes and 4.0-4.2 s -> 4,398 and
+      // 2.2-2.4 s; spiky_120k's third factorisation 0.26 s -> 0.16 s.
+      common.nrelax[0] = 16, common.nrelax[1] = 64, common.nrelax[2] = 256;
+      common.zrelax[0] = 0.8, common.zrelax[1] = 0.2, common.zrelax[2] = 0.1;
       common.final_asis = 1;
       common.nmethods = 1;
       common.method[0].ordering = CHOLMOD_GIVEN;

@@ -1267,6 +1267,29 @@ TEST(Command, AngleWeightIsUsedAndReported) {
   EXPECT_EQ(report_of("--angle-weight 20 --sweeps 30")["optimizer"]["sweep_limit"].get<int>(), 30);
 }
 
+TEST(Command, AsksForHeapHugePagesUnlessTheEnvironmentSaysOtherwise) {
+  // sdot::detail::rerun_with_runtime_settings: the command runs again with glibc's tunable set
+  const auto in = (temp_dir() / "runtime_in.off").string();
+  write_mesh(in, test::bumpy_sphere(2, 4, 0.2, 1));
+  auto runtime_of = [&](const std::string& environment) {
+    const auto out = (temp_dir() / "runtime_out.off").string(), rep = (temp_dir() / "runtime.json").string();
+    const std::string cmd =
+        environment + " " + std::string(SPHPARAM_COMMAND) + " " + in + " -o " + out + " --report " + rep + " --quiet";
+    EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    return nlohmann::json::parse(read_text(rep))["runtime"];
+  };
+#if defined(__linux__) && defined(__GLIBC__)
+  EXPECT_EQ(runtime_of("env -u GLIBC_TUNABLES -u SDOT_SPHERE_PARAM_REEXEC")["glibc_malloc_hugetlb"], "1");
+  // the user's other tunables are kept beside it, and the user's own value wins
+  EXPECT_EQ(
+      runtime_of("env -u SDOT_SPHERE_PARAM_REEXEC GLIBC_TUNABLES=glibc.malloc.top_pad=65536")["glibc_malloc_hugetlb"],
+      "1");
+  EXPECT_EQ(runtime_of("env -u SDOT_SPHERE_PARAM_REEXEC GLIBC_TUNABLES=glibc.malloc.hugetlb=0")["glibc_malloc_hugetlb"],
+            "0");
+#endif
+  EXPECT_EQ(runtime_of("env OMP_WAIT_POLICY=active")["omp_wait_policy"], "active");
+}
+
 TEST(Command, FreeSurferInFreeSurferSphereOfRadius100Out) {
   const Mesh m = test::bumpy_sphere(3, 6, 0.4, 2);
   const auto in = (temp_dir() / "lh.white").string(), out = (temp_dir() / "lh.sphere").string();
