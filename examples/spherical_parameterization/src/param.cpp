@@ -354,16 +354,21 @@ class LaplacianSolver {
   /// this thread, each other one on a thread of its own with its own cholmod_common (CHOLMOD is
   /// thread-safe so); a factor keeps no pointer to the common that made it.
   void analyse(Eigen::SparseMatrix<double>& lower) {
-    const auto start = [](cholmod_common& common) {
+    // Coarser supernodes than CHOLMOD's defaults (nrelax 4, 16, 48; zrelax 0.8, 0.1, 0.05) up to
+    // coarse_supernodes_up_to unknowns: a few more explicit zeros, but a third of the supernodes,
+    // each of which costs a BLAS call per update and, in SuiteSparse 5, an OpenMP region (a
+    // futex wake even on one thread). capsule40_120k, 16 factorisations: 11,840 supernodes and
+    // 4.0-4.2 s -> 4,398 and 2.2-2.4 s; spiky_120k's third factorisation 0.26 s -> 0.16 s. At
+    // brain scale the supernodes are large anyway: igea_134k Loop-subdivided twice (2.1 M
+    // unknowns) kept its time, 41 s, but peaked at 3,515 MB instead of 2,652 MB.
+    const bool coarse = lower.rows() <= coarse_supernodes_up_to;
+    const auto start = [coarse](cholmod_common& common) {
       cholmod_start(&common);
       common.supernodal = CHOLMOD_SUPERNODAL;
-      // Coarser supernodes than CHOLMOD's defaults (nrelax 4, 16, 48; zrelax 0.8, 0.1, 0.05): a
-      // few more explicit zeros, but a third of the supernodes, each of which costs a BLAS call
-      // per update and, in SuiteSparse 5, an OpenMP region (a futex wake even on one thread).
-      // capsule40_120k, 16 factorisations: 11,840 supernodes and 4.0-4.2 s -> 4,398 and
-      // 2.2-2.4 s; spiky_120k's third factorisation 0.26 s -> 0.16 s.
-      common.nrelax[0] = 16, common.nrelax[1] = 64, common.nrelax[2] = 256;
-      common.zrelax[0] = 0.8, common.zrelax[1] = 0.2, common.zrelax[2] = 0.1;
+      if (coarse) {
+        common.nrelax[0] = 16, common.nrelax[1] = 64, common.nrelax[2] = 256;
+        common.zrelax[0] = 0.8, common.zrelax[1] = 0.2, common.zrelax[2] = 0.1;
+      }
       common.final_asis = 1;
       common.nmethods = 1;
       common.method[0].ordering = CHOLMOD_GIVEN;

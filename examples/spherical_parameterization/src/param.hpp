@@ -23,6 +23,10 @@ namespace sphparam {
 /// CHOLMOD wins (spiky_60k: 1.00 s against 0.50 s, folds_60k 0.52 s against 0.22 s, lion_50k
 /// 0.30 s against 0.25 s), where Eigen's first system, in AMD order, has far more fill.
 inline constexpr long cholmod_from_unknowns = 45000;
+/// Up to this many unknowns CHOLMOD amalgamates the Tutte factor's supernodes more than by
+/// default: fewer, larger supernodes are faster there; beyond, they cost memory and no time
+/// (param.cpp, LaplacianSolver::analyse).
+inline constexpr long coarse_supernodes_up_to = 1000000;
 
 /// Vertex adjacency (CSR, sorted) and per-vertex incident faces of a closed triangle mesh.
 struct Topology {
