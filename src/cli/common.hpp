@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "registry.hpp"
+#include "sdot/detail/runtime_settings.hpp"
 #include "sdot/error.hpp"
 #include "sdot/image.hpp"
 #include "sdot/options.hpp"
@@ -225,7 +226,8 @@ json bench_json(const std::string& geometry, std::size_t n, const Result<Point>&
           {"linear_solve_s", s.timings.linear_solve_s},
           {"peak_rss_mb", peak_resident_memory_mb()},
           {"omp_wait_policy", wait_policy ? wait_policy : "default"},
-          {"mmap_threshold", chosen_mmap_threshold() ? json(chosen_mmap_threshold()) : json("default")}};
+          {"mmap_threshold", chosen_mmap_threshold() ? json(chosen_mmap_threshold()) : json("default")},
+          {"glibc_malloc_hugetlb", sdot::detail::heap_huge_pages_setting()}};
 }
 
 /// The bench density of the unit square (plane and torus): a k × k grid of squares, two triangles

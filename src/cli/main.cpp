@@ -168,7 +168,9 @@ int run_demo(const sdot::cli::Registry& registry, int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  sdot::detail::rerun_with_runtime_settings(argv, "SDOT_COMMAND_REEXEC");
+  // Huge pages on the heap: sdot bench, sphere, 10⁶ sites, 23.4 and 25.0 s -> 13.4 and 13.0 s,
+  // peak RSS 953 -> 955 MB (runtime_settings.hpp).
+  sdot::detail::rerun_with_runtime_settings(argv, "SDOT_COMMAND_REEXEC", {.heap_huge_pages = true});
   sdot::cli::Registry registry;
   sdot::cli::register_geometries(registry);
   try {

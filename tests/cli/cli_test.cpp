@@ -446,6 +446,19 @@ TEST(Cli, OpenMPThreadsWaitPassivelyUnlessToldOtherwise) {
   EXPECT_EQ(policy_of("env OMP_WAIT_POLICY=active"), "active");
 }
 
+TEST(Cli, AsksForHeapHugePagesUnlessTheEnvironmentSaysOtherwise) {
+  // page faults of large arrays (sdot::detail::RuntimeSettings::heap_huge_pages)
+  const auto hugetlb_of = [](const std::string& environment) {
+    const auto r = run_in(environment, "bench --geometry sphere --n 300 --quiet");
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return json::parse(r.out)["glibc_malloc_hugetlb"].get<std::string>();
+  };
+#if defined(__linux__) && defined(__GLIBC__)
+  EXPECT_EQ(hugetlb_of("env -u GLIBC_TUNABLES -u SDOT_COMMAND_REEXEC"), "1");
+  EXPECT_EQ(hugetlb_of("env -u SDOT_COMMAND_REEXEC GLIBC_TUNABLES=glibc.malloc.hugetlb=0"), "0");
+#endif
+}
+
 TEST(Cli, LargeProblemsMapTheirArraysFromTheSystem) {
   // glibc's own threshold below large_problem_sites (speed), 1 MB from there (peak memory)
   EXPECT_EQ(sdot::cli::mmap_threshold_for(1), 0u);
