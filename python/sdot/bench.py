@@ -41,9 +41,16 @@ def run(geometry, n, seed=1, tolerance=1e-6, linear_solver="auto", progress=Fals
         "peak_rss_mb": _sdot.peak_rss_mb(),
         "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY", "default"),
         "mmap_threshold": "default",  # the package leaves glibc's malloc as it is
+        "glibc_malloc_hugetlb": _hugetlb_setting(os.environ.get("GLIBC_TUNABLES", "")),
         "wall_s": wall,
         "python_overhead_s": wall - t["total_s"],
     }
+
+
+def _hugetlb_setting(tunables):
+    """The value of glibc.malloc.hugetlb in GLIBC_TUNABLES, or "default" (as the sdot command reports it)."""
+    values = [item.split("=", 1)[1] for item in tunables.split(":") if item.startswith("glibc.malloc.hugetlb=")]
+    return values[-1] if values else "default"
 
 
 def main(argv=None):

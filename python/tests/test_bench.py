@@ -1,6 +1,7 @@
 """python -m sdot.bench prints the line of `sdot bench` for the same problem."""
 
 import json
+import os
 import subprocess
 import sys
 
@@ -30,3 +31,16 @@ def test_bench_rejects_bad_arguments():
     out = subprocess.run([sys.executable, "-m", "sdot.bench", "--geometry", "cube", "--n", "10"],
                          capture_output=True, text=True)
     assert out.returncode == 2 and "invalid choice" in out.stderr
+
+
+def test_bench_reports_the_heap_huge_pages_setting():
+    def setting(tunables):
+        env = {k: v for k, v in os.environ.items() if k != "GLIBC_TUNABLES"}
+        if tunables is not None:
+            env["GLIBC_TUNABLES"] = tunables
+        out = subprocess.run([sys.executable, "-m", "sdot.bench", "--geometry", "plane", "--n", "200", "--quiet"],
+                             capture_output=True, text=True, check=True, env=env)
+        return json.loads(out.stdout)["glibc_malloc_hugetlb"]
+
+    assert setting(None) == "default"
+    assert setting("glibc.malloc.top_pad=65536:glibc.malloc.hugetlb=1") == "1"

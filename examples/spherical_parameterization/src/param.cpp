@@ -359,8 +359,9 @@ class LaplacianSolver {
     // each of which costs a BLAS call per update and, in SuiteSparse 5, an OpenMP region (a
     // futex wake even on one thread). capsule40_120k, 16 factorisations: 11,840 supernodes and
     // 4.0-4.2 s -> 4,398 and 2.2-2.4 s; spiky_120k's third factorisation 0.26 s -> 0.16 s. At
-    // brain scale the supernodes are large anyway: igea_134k Loop-subdivided twice (2.1 M
-    // unknowns) kept its time, 41 s, but peaked at 3,515 MB instead of 2,652 MB.
+    // brain scale the supernodes are large anyway: brain_48k and igea_134k Loop-subdivided twice
+    // (775k and 2.1M unknowns) took 24.6 and 42.2 s with them against 23.4 and 41.2 s without,
+    // and peaked at 1,496 and 3,515 MB against 1,123 and 2,590 MB.
     const bool coarse = lower.rows() <= coarse_supernodes_up_to;
     const auto start = [coarse](cholmod_common& common) {
       cholmod_start(&common);
@@ -1225,6 +1226,48 @@ std::vector<std::vector<int>> colour_classes(const Topology& topo, std::size_t n
   return classes;
 }
 
+/// What move_vertex did.
+enum class Move { skipped, rejected, accepted, accepted_significantly };
+
+/// One damped Gauss–Newton move of vertex i in its tangent plane (2×2 system, Levenberg damping
+/// `mu`, updated): the first try over-relaxed, then damped until the local energy decreases.
+/// Accepted significantly: the decrease exceeds the activity threshold (options), relative to
+/// the smaller of the vertex's energy and `mean_vertex_energy`.
+Move move_vertex(const Topology& topo, const std::vector<Corner>& corners, std::vector<Vec3>& s, int i, double& mu,
+                 const OptimizeOptions& options, double mean_vertex_energy) {
+  const auto iv = u(i);
+  const Vec3 x = s[iv];
+  const LocalEval e0 = local_energy(topo, corners, s, i, x, options.angle_weight, true, options.regularization);
+  if (!e0.valid) return Move::skipped;
+  const Vec3 t1 = (std::abs(x.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(x).normalized();
+  const Vec3 t2 = x.cross(t1);
+  Eigen::Matrix<double, 3, 2> P;
+  P.col(0) = t1, P.col(1) = t2;
+  const Eigen::Vector2d grad2 = P.transpose() * e0.grad;
+  const Eigen::Matrix2d H = P.transpose() * e0.gn * P;
+  const double scale = H.trace() * 0.5 + 1e-300;
+  double m = mu;
+  for (int tries = 0; tries < 6; ++tries) {
+    // the damped 2×2 system (symmetric positive definite) by Cramer's rule
+    const double h00 = H(0, 0) + m * scale, h11 = H(1, 1) + m * scale, h01 = 0.5 * (H(0, 1) + H(1, 0));
+    const double relaxation = tries == 0 ? options.over_relaxation : 1.0;
+    const double factor = -relaxation / (h00 * h11 - h01 * h01);
+    const Eigen::Vector2d d(factor * (h11 * grad2.x() - h01 * grad2.y()), factor * (h00 * grad2.y() - h01 * grad2.x()));
+    const Vec3 y = (x + P * d).normalized();
+    const LocalEval e1 = local_energy(topo, corners, s, i, y, options.angle_weight, false, options.regularization);
+    if (e1.valid && e1.energy < e0.energy) {
+      s[iv] = y;
+      mu = std::max(m * 0.3, 1e-4);
+      return e0.energy - e1.energy > options.activity_threshold * (std::min(e0.energy, mean_vertex_energy) + 1e-12)
+                 ? Move::accepted_significantly
+                 : Move::accepted;
+    }
+    m = m * 10 + 1e-2;
+  }
+  mu = std::min(m, 1e3);
+  return Move::rejected;
+}
+
 }  // namespace
 
 int sweep_limit(const OptimizeOptions& options) {
@@ -1320,42 +1363,11 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
         const auto iv = u(i);
         if (!active[iv]) continue;
         ++visited;
-        const Vec3 x = s[iv];
-        const LocalEval e0 = local_energy(topo, corners, s, i, x, options.angle_weight, true, options.regularization);
-        if (!e0.valid) continue;
-        const Vec3 t1 = (std::abs(x.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(x).normalized();
-        const Vec3 t2 = x.cross(t1);
-        Eigen::Matrix<double, 3, 2> P;
-        P.col(0) = t1, P.col(1) = t2;
-        const Eigen::Vector2d grad2 = P.transpose() * e0.grad;
-        const Eigen::Matrix2d H = P.transpose() * e0.gn * P;
-        const double scale = H.trace() * 0.5 + 1e-300;
-        double m = mu[iv];
-        bool accepted = false;
-        for (int tries = 0; tries < 6; ++tries) {
-          // the damped 2×2 system (symmetric positive definite) by Cramer's rule
-          const double h00 = H(0, 0) + m * scale, h11 = H(1, 1) + m * scale, h01 = 0.5 * (H(0, 1) + H(1, 0));
-          const double relaxation = tries == 0 ? options.over_relaxation : 1.0;
-          const double factor = -relaxation / (h00 * h11 - h01 * h01);
-          const Eigen::Vector2d d(factor * (h11 * grad2.x() - h01 * grad2.y()),
-                                  factor * (h00 * grad2.y() - h01 * grad2.x()));
-          const Vec3 y = (x + P * d).normalized();
-          const LocalEval e1 =
-              local_energy(topo, corners, s, i, y, options.angle_weight, false, options.regularization);
-          if (e1.valid && e1.energy < e0.energy) {
-            s[iv] = y;
-            accepted = true;
-            if (e0.energy - e1.energy >
-                options.activity_threshold * (std::min(e0.energy, mean_vertex_energy) + 1e-12)) {
-              std::atomic_ref<char>(next_active[iv]).store(1, std::memory_order_relaxed);
-              for (int k = topo.nbr_offsets[iv]; k < topo.nbr_offsets[iv + 1]; ++k)
-                std::atomic_ref<char>(next_active[u(topo.nbrs[u(k)])]).store(1, std::memory_order_relaxed);
-            }
-            break;
-          }
-          m = m * 10 + 1e-2;
+        if (move_vertex(topo, corners, s, i, mu[iv], options, mean_vertex_energy) == Move::accepted_significantly) {
+          std::atomic_ref<char>(next_active[iv]).store(1, std::memory_order_relaxed);
+          for (int k = topo.nbr_offsets[iv]; k < topo.nbr_offsets[iv + 1]; ++k)
+            std::atomic_ref<char>(next_active[u(topo.nbrs[u(k)])]).store(1, std::memory_order_relaxed);
         }
-        mu[iv] = accepted ? std::max(m * 0.3, 1e-4) : std::min(m, 1e3);
       }
     }
     active.swap(next_active);

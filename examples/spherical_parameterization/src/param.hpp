@@ -24,9 +24,9 @@ namespace sphparam {
 /// 0.30 s against 0.25 s), where Eigen's first system, in AMD order, has far more fill.
 inline constexpr long cholmod_from_unknowns = 45000;
 /// Up to this many unknowns CHOLMOD amalgamates the Tutte factor's supernodes more than by
-/// default: fewer, larger supernodes are faster there; beyond, they cost memory and no time
-/// (param.cpp, LaplacianSolver::analyse).
-inline constexpr long coarse_supernodes_up_to = 1000000;
+/// default: fewer, larger supernodes are faster at 120k unknowns; at 775k and 2.1M they cost
+/// memory and no time (param.cpp, LaplacianSolver::analyse). The bound lies between.
+inline constexpr long coarse_supernodes_up_to = 250000;
 
 /// Vertex adjacency (CSR, sorted) and per-vertex incident faces of a closed triangle mesh.
 struct Topology {
