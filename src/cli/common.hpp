@@ -214,7 +214,6 @@ std::size_t chosen_mmap_threshold();
 template <class Point>
 json bench_json(const std::string& geometry, std::size_t n, const Result<Point>& result) {
   const Summary& s = result.summary;
-  const char* wait_policy = std::getenv("OMP_WAIT_POLICY");  // the command sets passive unless told otherwise
   return {{"geometry", geometry},
           {"n", n},
           {"status", std::string(to_string(s.status))},
@@ -225,7 +224,7 @@ json bench_json(const std::string& geometry, std::size_t n, const Result<Point>&
           {"assembly_s", s.timings.assembly_s},
           {"linear_solve_s", s.timings.linear_solve_s},
           {"peak_rss_mb", peak_resident_memory_mb()},
-          {"omp_wait_policy", wait_policy ? wait_policy : "default"},
+          {"omp_wait_policy", sdot::detail::omp_wait_policy_setting()},  // passive unless told otherwise
           {"mmap_threshold", chosen_mmap_threshold() ? json(chosen_mmap_threshold()) : json("default")},
           {"glibc_malloc_hugetlb", sdot::detail::heap_huge_pages_setting()}};
 }

@@ -446,6 +446,17 @@ TEST(Cli, OpenMPThreadsWaitPassivelyUnlessToldOtherwise) {
   EXPECT_EQ(policy_of("env OMP_WAIT_POLICY=active"), "active");
 }
 
+TEST(Cli, GlibcTunablesAreReadByName) {
+  using sdot::detail::glibc_tunable;
+  EXPECT_EQ(glibc_tunable(nullptr, "glibc.malloc.hugetlb"), "default");
+  EXPECT_EQ(glibc_tunable("", "glibc.malloc.hugetlb"), "default");
+  EXPECT_EQ(glibc_tunable("glibc.malloc.hugetlb=1", "glibc.malloc.hugetlb"), "1");
+  EXPECT_EQ(glibc_tunable("glibc.malloc.top_pad=65536:glibc.malloc.hugetlb=0", "glibc.malloc.hugetlb"), "0");
+  EXPECT_EQ(glibc_tunable("glibc.malloc.hugetlb=0:glibc.malloc.hugetlb=1", "glibc.malloc.hugetlb"), "1");  // last wins
+  // a longer name that starts with the same letters is another tunable
+  EXPECT_EQ(glibc_tunable("glibc.malloc.hugetlbx=1:glibc.malloc.top_pad=0", "glibc.malloc.hugetlb"), "default");
+}
+
 TEST(Cli, AsksForHeapHugePagesUnlessTheEnvironmentSaysOtherwise) {
   // page faults of large arrays (sdot::detail::RuntimeSettings::heap_huge_pages)
   const auto hugetlb_of = [](const std::string& environment) {

@@ -223,8 +223,7 @@ int main(int argc, char** argv) {
   };
   json report;
   report["input"] = input;
-  const char* wait_policy = std::getenv("OMP_WAIT_POLICY");
-  report["runtime"] = {{"omp_wait_policy", wait_policy ? wait_policy : "default"},
+  report["runtime"] = {{"omp_wait_policy", sdot::detail::omp_wait_policy_setting()},
                        {"glibc_malloc_hugetlb", sdot::detail::heap_huge_pages_setting()}};
   report["output"] = output;
   auto write_report = [&] {

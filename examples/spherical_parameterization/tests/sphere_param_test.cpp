@@ -1243,16 +1243,24 @@ TEST(Command, EndToEndWithReportAndSvg) {
   EXPECT_TRUE(fs::exists(svg));
 }
 
+namespace {
+/// The report of the command run on `input` with `options`, after `environment` (an `env ...`
+/// prefix or empty); a failed run fails the calling test.
+nlohmann::json command_report(const std::string& input, const std::string& options,
+                              const std::string& environment = "") {
+  const auto out = (temp_dir() / "command_report_out.off").string(),
+             rep = (temp_dir() / "command_report.json").string();
+  const std::string cmd = environment + " " + std::string(SPHPARAM_COMMAND) + " " + input + " -o " + out +
+                          " --report " + rep + " --quiet " + options;
+  EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  return nlohmann::json::parse(read_text(rep));
+}
+}  // namespace
+
 TEST(Command, AngleWeightIsUsedAndReported) {
   const auto in = (temp_dir() / "angle_in.off").string();
   write_mesh(in, test::bumpy_sphere(3, 6, 0.4, 2));
-  auto report_of = [&](const std::string& options) {
-    const auto out = (temp_dir() / "angle_out.off").string(), rep = (temp_dir() / "angle.json").string();
-    const std::string cmd =
-        std::string(SPHPARAM_COMMAND) + " " + in + " -o " + out + " --report " + rep + " --quiet " + options;
-    EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
-    return nlohmann::json::parse(read_text(rep));
-  };
+  auto report_of = [&](const std::string& options) { return command_report(in, options); };
   const auto by_default = report_of("");
   EXPECT_EQ(by_default["optimizer"]["angle_weight"].get<double>(), default_angle_weight);
   EXPECT_EQ(by_default["optimizer"]["sweep_limit"].get<int>(), 200);
@@ -1271,13 +1279,7 @@ TEST(Command, AsksForHeapHugePagesUnlessTheEnvironmentSaysOtherwise) {
   // sdot::detail::rerun_with_runtime_settings: the command runs again with glibc's tunable set
   const auto in = (temp_dir() / "runtime_in.off").string();
   write_mesh(in, test::bumpy_sphere(2, 4, 0.2, 1));
-  auto runtime_of = [&](const std::string& environment) {
-    const auto out = (temp_dir() / "runtime_out.off").string(), rep = (temp_dir() / "runtime.json").string();
-    const std::string cmd =
-        environment + " " + std::string(SPHPARAM_COMMAND) + " " + in + " -o " + out + " --report " + rep + " --quiet";
-    EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
-    return nlohmann::json::parse(read_text(rep))["runtime"];
-  };
+  auto runtime_of = [&](const std::string& environment) { return command_report(in, "", environment)["runtime"]; };
 #if defined(__linux__) && defined(__GLIBC__)
   EXPECT_EQ(runtime_of("env -u GLIBC_TUNABLES -u SDOT_SPHERE_PARAM_REEXEC")["glibc_malloc_hugetlb"], "1");
   // the user's other tunables are kept beside it, and the user's own value wins

@@ -27,22 +27,27 @@ struct RuntimeSettings {
   bool heap_huge_pages = false;
 };
 
-/// True when the environment already names the glibc tunable glibc.malloc.hugetlb (set by the
-/// user, whatever its value, or by an earlier run).
-inline bool names_heap_huge_pages(const char* tunables) {
-  return tunables && std::string(tunables).find("glibc.malloc.hugetlb") != std::string::npos;
+/// The value of the tunable `name` in a GLIBC_TUNABLES string ("a=1:b=2"; the last one counts),
+/// or "default" when it is not there.
+inline std::string glibc_tunable(const char* tunables, const std::string& name) {
+  std::string value = "default";
+  for (std::string rest = tunables ? tunables : ""; !rest.empty();) {
+    const auto end = rest.find(':');
+    const std::string item = rest.substr(0, end);
+    if (item.rfind(name + "=", 0) == 0) value = item.substr(name.size() + 1);
+    rest = end == std::string::npos ? std::string() : rest.substr(end + 1);
+  }
+  return value;
 }
 
-/// The value of glibc.malloc.hugetlb in GLIBC_TUNABLES ("1": transparent huge pages requested),
-/// or "default" when it is not set; for reports.
+/// The settings as this process has them, for reports: OMP_WAIT_POLICY (or "default") and
+/// glibc.malloc.hugetlb in GLIBC_TUNABLES ("1": transparent huge pages requested; or "default").
+inline std::string omp_wait_policy_setting() {
+  const char* policy = std::getenv("OMP_WAIT_POLICY");
+  return policy ? policy : "default";
+}
 inline std::string heap_huge_pages_setting() {
-  const char* tunables = std::getenv("GLIBC_TUNABLES");
-  if (!names_heap_huge_pages(tunables)) return "default";
-  const std::string all(tunables), key = "glibc.malloc.hugetlb=";
-  const auto at = all.rfind(key);
-  if (at == std::string::npos) return "default";
-  return all.substr(at + key.size(),
-                    all.find(':', at) == std::string::npos ? std::string::npos : all.find(':', at) - at - key.size());
+  return glibc_tunable(std::getenv("GLIBC_TUNABLES"), "glibc.malloc.hugetlb");
 }
 
 /// Runs the program again, once, with the environment `settings` asks for, unless the
@@ -63,7 +68,7 @@ inline void rerun_with_runtime_settings([[maybe_unused]] char** argv, [[maybe_un
 #endif
 #if defined(__GLIBC__)
   const char* tunables = std::getenv("GLIBC_TUNABLES");
-  if (settings.heap_huge_pages && !names_heap_huge_pages(tunables)) {
+  if (settings.heap_huge_pages && glibc_tunable(tunables, "glibc.malloc.hugetlb") == "default") {
     const std::string requested =
         (tunables && *tunables ? std::string(tunables) + ":" : std::string()) + "glibc.malloc.hugetlb=1";
     setenv("GLIBC_TUNABLES", requested.c_str(), 1);
