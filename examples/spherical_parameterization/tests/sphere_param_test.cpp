@@ -610,12 +610,13 @@ TEST(Stages, StretchReweightingOpensCrushedSpikesOnCholmodsPath) {
 TEST(Stages, StretchReweightingOpensADeeplyCrushedTubeInFewSolves) {
   // A tube 40 radii long (16,994 vertices): its Tutte map crushes 0.5 % of the faces by e^-33
   // or more, and e^±4 per reweighting opens them by about e^0.5 per solve (still e^-13.9 on the
-  // sphere after all 40). Still below e^-20 after 4 reweightings, the reweighting takes e^±10
-  // steps and stops at e^-6 in the plane (18 reweightings, e^-4.5 on the sphere).
+  // sphere after all 40). Still below e^-20 after one reweighting that gained less than e^1, the
+  // reweighting takes e^±10 steps and stops at e^-6 in the plane (16 reweightings, e^-4.5 on the
+  // sphere; 18 when e^±10 waited for the fourth).
   const Mesh m = test::capsule(48, 40);
   const ReweightingOutcome r = reweighting_outcome(m);
   EXPECT_LT(r.plain_q, -25.0);  // deeply crushed, or the test says nothing
-  EXPECT_LE(r.reweightings, 20);
+  EXPECT_LE(r.reweightings, 16);
   EXPECT_GT(r.reweighted_q, -9.0);
   EXPECT_LE(r.flips, m.faces.size() / 200);
 }
