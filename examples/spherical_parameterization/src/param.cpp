@@ -1358,6 +1358,10 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
   // class and sweep costs more than it saves there, and much more when the machine is loaded.
   const std::vector<std::vector<int>>& colours = tables_->colours;
   const int max_sweeps = sweep_limit(options);
+  // Over-relaxed moves only where the area error is above its noise level (OptimizeOptions).
+  OptimizeOptions sweep_options = options;
+  if (result.energy_start < plain_steps_below_face_energy * static_cast<double>(mesh.faces.size()))
+    sweep_options.over_relaxation = 1;
   for (int sweep = 0; sweep < max_sweeps; ++sweep) {
     std::size_t visited = 0;
     std::fill(next_active.begin(), next_active.end(), 0);
@@ -1369,7 +1373,8 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
         const auto iv = u(i);
         if (!active[iv]) continue;
         ++visited;
-        if (move_vertex(topo, corners, s, i, mu[iv], options, mean_vertex_energy) == Move::accepted_significantly) {
+        if (move_vertex(topo, corners, s, i, mu[iv], sweep_options, mean_vertex_energy) ==
+            Move::accepted_significantly) {
           std::atomic_ref<char>(next_active[iv]).store(1, std::memory_order_relaxed);
           for (int k = topo.nbr_offsets[iv]; k < topo.nbr_offsets[iv + 1]; ++k)
             std::atomic_ref<char>(next_active[u(topo.nbrs[u(k)])]).store(1, std::memory_order_relaxed);
@@ -1571,6 +1576,7 @@ std::vector<Vec3> hierarchical_sphere_map(const Mesh& mesh, std::size_t base_ver
       for (int x : level_mesh.faces[f]) level_targets[f] += mass[u(global_of[u(x)])] / face_count[u(x)];
     OptimizeOptions o;
     o.max_sweeps = sweeps;
+    o.over_relaxation = 1;  // a few sweeps after each level's insertions: local errors
     optimize_area(level_mesh, level_topo, level_targets, local, o);
     for (std::size_t i = 0; i < global_of.size(); ++i) s[u(global_of[i])] = local[i];
   };
