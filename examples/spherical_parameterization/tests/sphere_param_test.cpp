@@ -632,7 +632,8 @@ TEST(Stages, CrushingIsJudgedOnTheLastMapWhenTheReweightingsRunOut) {
     bool crushed = false, below_rounding = true;
     int reweightings = -1;
     (void)tutte_sphere_map(m, topo, targets, allowed, &reweightings, &crushed, false, &below_rounding);
-    EXPECT_EQ(reweightings, allowed);
+    // e^-33 is out of reach of one reweighting (e^10 at most): it is not even tried
+    EXPECT_EQ(reweightings, 0);
     EXPECT_TRUE(crushed) << allowed << " reweightings";
   }
   PipelineOptions options;
@@ -1114,8 +1115,9 @@ TEST(Stages, CoarseToFineMapOfALongTubeIsFlipFreeInAnyFaceOrder) {
   int reweightings = 0;
   (void)tutte_sphere_map(tube, topo, face_targets(tube, {}), 40, &reweightings, nullptr, false, &below_rounding);
   EXPECT_TRUE(below_rounding);
-  // its far end's vertices coincide in the plane: the reweighting gives up after the first
-  EXPECT_EQ(reweightings, 1);
+  // its far end's vertices coincide in the plane, crushed far beyond what 40 reweightings of at
+  // most e^10 each could open: the reweighting is not even tried
+  EXPECT_EQ(reweightings, 0);
   std::mt19937 rng(3);
   for (int order = 0; order < 6; ++order) {
     Mesh m = tube;
