@@ -705,9 +705,9 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
     const bool full_window = quantiles.size() > std::size_t{window};
     const double gain = full_window ? quantiles.back() - quantiles[quantiles.size() - 1 - std::size_t{window}] : 0.0;
     // - a map so crushed that the reweightings left could not reach e^-6 even at the deep clamp's
-    //   e^10 each, the most any face's weight may change in one (tubes_120k and capsule_120k
-    //   start at e^-615 and e^-585: one Tutte system fewer, 0.2-0.3 s; more than any reweighting
-    //   ever gained, e^6.2 on cow_igl).
+    //   e^10 each, the most any face's weight may change in one, and more than any reweighting
+    //   ever gained (e^6.2 on cow_igl): the tubes and capsules, at e^-585 to e^-617, take one
+    //   Tutte system fewer (capsule_120k's initial map 2.87-2.94 s -> 2.59-2.60 s).
     const double deep_clamp = 10.0;
     const bool stalled = (full_window && gain < 0.25) || (done >= 1 && vanished > q) ||
                          (deeply_crushed && done >= 2 * window &&
