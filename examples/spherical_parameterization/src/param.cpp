@@ -586,6 +586,8 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
   bool still_crushed = false, below_rounding = false, deeply_crushed = false;
   std::vector<double> quantiles;  // the 0.5 % quantile of the log stretch after each solve
   constexpr int window = 4;       // reweightings over which progress is judged
+  // A deeply crushed map (below) is reweighted by up to e^±10 a solve, until e^-6.
+  constexpr double deep_clamp = 10.0, deep_enough = -6.0;
   for (int iteration = 0;; ++iteration) {
     std::vector<Eigen::Triplet<double>> trips;
     trips.reserve((lower_only ? 3 : 6) * nf + nv);
@@ -673,7 +675,7 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
     // area mean|d| the same, 0.0368).
     if (sorted[q] < -20.0 && (done == window || (done == 1 && sorted[q] - quantiles.front() < 1.0)))
       deeply_crushed = true;
-    const double enough = deeply_crushed ? -6.0 : -4.0;
+    const double enough = deeply_crushed ? deep_enough : -4.0;
     still_crushed = sorted[q] <= enough;
     // Less than 0.25 gained over 4 reweightings: the crushed parts are tubes whose crushing
     // reweighting cannot undo (param.hpp, hierarchical_sphere_map); more solves only cost time.
@@ -708,11 +710,10 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
     //   e^10 each, the most any face's weight may change in one, and more than any reweighting
     //   ever gained (e^6.2 on cow_igl): the tubes and capsules, at e^-585 to e^-617, take one
     //   Tutte system fewer (capsule_120k's initial map 2.87-2.94 s -> 2.59-2.60 s).
-    const double deep_clamp = 10.0;
     const bool stalled = (full_window && gain < 0.25) || (done >= 1 && vanished > q) ||
                          (deeply_crushed && done >= 2 * window &&
                           quantiles.back() + gain / window * (max_reweightings - done) < enough) ||
-                         sorted[q] + deep_clamp * (max_reweightings - done) < -6.0;
+                         sorted[q] + deep_clamp * (max_reweightings - done) < deep_enough;
     if (stalled && (crushed || below_rounding)) break;
     // the full stretch (exponent 1) converges in half the reweightings of its square root
     // (bunny_35k: 7 against 14) to the same OT result
@@ -1242,11 +1243,12 @@ std::vector<std::vector<int>> colour_classes(const Topology& topo, std::size_t n
 enum class Move { skipped, rejected, accepted, accepted_significantly };
 
 /// One damped Gauss–Newton move of vertex i in its tangent plane (2×2 system, Levenberg damping
-/// `mu`, updated): the first try over-relaxed, then damped until the local energy decreases.
+/// `mu`, updated): the first try `over_relaxation` times the step, then damped until the local
+/// energy decreases.
 /// Accepted significantly: the decrease exceeds the activity threshold (options), relative to
 /// the smaller of the vertex's energy and `mean_vertex_energy`.
 Move move_vertex(const Topology& topo, const std::vector<Corner>& corners, std::vector<Vec3>& s, int i, double& mu,
-                 const OptimizeOptions& options, double mean_vertex_energy) {
+                 const OptimizeOptions& options, double over_relaxation, double mean_vertex_energy) {
   const auto iv = u(i);
   const Vec3 x = s[iv];
   const LocalEval e0 = local_energy(topo, corners, s, i, x, options.angle_weight, true, options.regularization);
@@ -1262,7 +1264,7 @@ Move move_vertex(const Topology& topo, const std::vector<Corner>& corners, std::
   for (int tries = 0; tries < 6; ++tries) {
     // the damped 2×2 system (symmetric positive definite) by Cramer's rule
     const double h00 = H(0, 0) + m * scale, h11 = H(1, 1) + m * scale, h01 = 0.5 * (H(0, 1) + H(1, 0));
-    const double relaxation = tries == 0 ? options.over_relaxation : 1.0;
+    const double relaxation = tries == 0 ? over_relaxation : 1.0;
     const double factor = -relaxation / (h00 * h11 - h01 * h01);
     const Eigen::Vector2d d(factor * (h11 * grad2.x() - h01 * grad2.y()), factor * (h00 * grad2.y() - h01 * grad2.x()));
     const Vec3 y = (x + P * d).normalized();
@@ -1365,9 +1367,9 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
   const std::vector<std::vector<int>>& colours = tables_->colours;
   const int max_sweeps = sweep_limit(options);
   // Over-relaxed moves only where the area error is above its noise level (OptimizeOptions).
-  OptimizeOptions sweep_options = options;
-  if (result.energy_start < plain_steps_below_face_energy * static_cast<double>(mesh.faces.size()))
-    sweep_options.over_relaxation = 1;
+  result.over_relaxation = result.energy_start < plain_steps_below_face_energy * static_cast<double>(mesh.faces.size())
+                               ? 1.0
+                               : options.over_relaxation;
   for (int sweep = 0; sweep < max_sweeps; ++sweep) {
     std::size_t visited = 0;
     std::fill(next_active.begin(), next_active.end(), 0);
@@ -1379,7 +1381,7 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
         const auto iv = u(i);
         if (!active[iv]) continue;
         ++visited;
-        if (move_vertex(topo, corners, s, i, mu[iv], sweep_options, mean_vertex_energy) ==
+        if (move_vertex(topo, corners, s, i, mu[iv], options, result.over_relaxation, mean_vertex_energy) ==
             Move::accepted_significantly) {
           std::atomic_ref<char>(next_active[iv]).store(1, std::memory_order_relaxed);
           for (int k = topo.nbr_offsets[iv]; k < topo.nbr_offsets[iv + 1]; ++k)

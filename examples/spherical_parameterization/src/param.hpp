@@ -189,6 +189,9 @@ struct OptimizeResult {
   int sweeps = 0;
   std::size_t visits = 0;  ///< vertex updates tried
   double energy_start = 0, energy_end = 0;
+  /// The ω the moves used: OptimizeOptions::over_relaxation, or 1 from a map at the noise level
+  /// (plain_steps_below_face_energy); 0 when no run took place.
+  double over_relaxation = 0;
 };
 /// Flip-free area-correcting optimization on the sphere: Gauss–Seidel over vertices, one colour
 /// class of the vertex graph at a time in parallel (with an

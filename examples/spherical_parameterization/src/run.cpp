@@ -127,7 +127,7 @@ RunResult run_parameterization(Mesh&& raw, const ReadInfo& info, PipelineOptions
                   {"error_history", R.ot.error_history}};
   report["optimizer"] = {{"angle_weight", options.optimizer.angle_weight},
                          {"sweep_limit", sweep_limit(options.optimizer)},
-                         {"over_relaxation", options.optimizer.over_relaxation},
+                         {"over_relaxation", R.optimizer.over_relaxation},
                          {"sweeps", R.optimizer.sweeps},
                          {"visits", R.optimizer.visits},
                          {"energy_start", R.optimizer.energy_start},

@@ -931,27 +931,28 @@ TEST(AreaOptimizer, OverRelaxationStopsAtTheNoiseLevelOfTheAreaError) {
   const Topology topo(m);
   const std::vector<double> targets = face_targets(m, {});
   const AreaOptimizer optimizer(m, topo, targets);
-  std::vector<Vec3> converged(m.vertices.size());
-  for (std::size_t i = 0; i < converged.size(); ++i) converged[i] = m.vertices[i].normalized();
+  std::vector<Vec3> projected(m.vertices.size());  // far above the noise level
+  for (std::size_t i = 0; i < projected.size(); ++i) projected[i] = m.vertices[i].normalized();
+  std::vector<Vec3> converged = projected;
   OptimizeOptions o;
   o.angle_weight = 0, o.max_sweeps = 400, o.activity_threshold = 1e-6, o.over_relaxation = 1;
   const OptimizeResult polished = optimizer.run(converged, o);
   const double faces = static_cast<double>(m.faces.size());
   ASSERT_LT(polished.energy_end, 0.2 * plain_steps_below_face_energy * faces);
-  auto positions_after = [&](std::vector<Vec3> s, double omega, double& start_energy) {
+  // the positions after 20 sweeps with ω asked, and the ω the run used
+  auto positions_after = [&](std::vector<Vec3> s, double omega, OptimizeResult& result) {
     OptimizeOptions run_options;
     run_options.angle_weight = 0, run_options.max_sweeps = 20, run_options.over_relaxation = omega;
-    start_energy = optimizer.run(s, run_options).energy_start;
+    result = optimizer.run(s, run_options);
     return s;
   };
-  double energy = 0;
-  EXPECT_EQ(positions_after(converged, 1.6, energy), positions_after(converged, 1.0, energy));
-  // the projected ellipsoid itself: far above the noise level, the over-relaxed moves differ
-  std::vector<Vec3> projected(m.vertices.size());
-  for (std::size_t i = 0; i < projected.size(); ++i) projected[i] = m.vertices[i].normalized();
-  const auto relaxed = positions_after(projected, 1.6, energy);
-  ASSERT_GT(energy, plain_steps_below_face_energy * faces);
-  EXPECT_NE(relaxed, positions_after(projected, 1.0, energy));
+  OptimizeResult relaxed_run, plain_run;
+  EXPECT_EQ(positions_after(converged, 1.6, relaxed_run), positions_after(converged, 1.0, plain_run));
+  EXPECT_EQ(relaxed_run.over_relaxation, 1.0);
+  const auto relaxed = positions_after(projected, 1.6, relaxed_run);
+  ASSERT_GT(relaxed_run.energy_start, plain_steps_below_face_energy * faces);
+  EXPECT_EQ(relaxed_run.over_relaxation, 1.6);
+  EXPECT_NE(relaxed, positions_after(projected, 1.0, plain_run));
 }
 
 TEST(AreaOptimizer, OverRelaxationOutsideZeroToTwoIsRejected) {
