@@ -1120,34 +1120,15 @@ std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std:
 namespace {
 
 /// One face seen from one of its vertices i, with everything the local energy of i reads:
-/// the other two vertices (counter-clockwise), the face's target area and the cotangents of the
-/// mesh angles at i, j and k (MIPS term). Stored contiguously per vertex, so a local energy reads
-/// one block instead of following vertex → face → (vertices, target, cotangents) indirections
-/// (igea_134k: the optimization about 20 % faster).
+/// the other two vertices (counter-clockwise, as slots: OptimizerTables), the face's target area
+/// and the cotangents of the mesh angles at i, j and k (MIPS term). Stored contiguously per
+/// vertex, so a local energy reads one block instead of following vertex → face → (vertices,
+/// target, cotangents) indirections (igea_134k: the optimization about 20 % faster).
 struct Corner {
   int j, k;
   double target;
   double cot_i, cot_j, cot_k;
 };
-
-/// Corners of every vertex, in the order of topo.vfaces (CSR offsets topo.face_offsets).
-std::vector<Corner> corner_table(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets) {
-  std::vector<Corner> corners(topo.vfaces.size());
-  const auto nv = static_cast<std::ptrdiff_t>(topo.face_offsets.size()) - 1;
-#pragma omp parallel for schedule(static)
-  for (std::ptrdiff_t vertex = 0; vertex < nv; ++vertex) {
-    const auto i = u(vertex);
-    for (int q = topo.face_offsets[i]; q < topo.face_offsets[i + 1]; ++q) {
-      const int f = topo.vfaces[u(q)];
-      const auto& t = mesh.faces[u(f)];
-      const int c = t[0] == static_cast<int>(i) ? 0 : (t[1] == static_cast<int>(i) ? 1 : 2);
-      const int j = t[u((c + 1) % 3)], k = t[u((c + 2) % 3)];
-      const Vec3 &pi = mesh.vertices[i], &pj = mesh.vertices[u(j)], &pk = mesh.vertices[u(k)];
-      corners[u(q)] = {j, k, targets[u(f)], cot_angle(pi, pj, pk), cot_angle(pj, pk, pi), cot_angle(pk, pi, pj)};
-    }
-  }
-  return corners;
-}
 
 struct LocalEval {
   double energy = 0;
@@ -1156,15 +1137,17 @@ struct LocalEval {
   bool valid = true;
 };
 
-/// Energy of the faces around vertex i with vertex i at position x.
+/// Energy of the faces [first, last) around one vertex with that vertex at position x; the
+/// others at position(slot).
 /// Area term log²(A/T) with A the signed spherical area; MIPS term on the chordal triangle.
-LocalEval local_energy(const Topology& topo, const std::vector<Corner>& corners, const std::vector<Vec3>& s, int i,
-                       const Vec3& x, double lambda, bool with_derivatives, double eps = 0) {
+template <class Position>
+LocalEval local_energy(const Corner* first, const Corner* last, const Position& position, const Vec3& x, double lambda,
+                       bool with_derivatives, double eps = 0) {
   LocalEval e;
-  for (int q = topo.face_offsets[u(i)]; q < topo.face_offsets[u(i) + 1]; ++q) {
-    const Corner& corner = corners[u(q)];
-    const Vec3& pj = s[u(corner.j)];
-    const Vec3& pk = s[u(corner.k)];
+  for (const Corner* corner_it = first; corner_it != last; ++corner_it) {
+    const Corner& corner = *corner_it;
+    const Vec3& pj = position(corner.j);
+    const Vec3& pk = position(corner.k);
     const Vec3 jk = pj.cross(pk);
     const double N = x.dot(jk);
     const double D = 1 + x.dot(pj) + pj.dot(pk) + pk.dot(x);
@@ -1242,16 +1225,16 @@ std::vector<std::vector<int>> colour_classes(const Topology& topo, std::size_t n
 /// What move_vertex did.
 enum class Move { skipped, rejected, accepted, accepted_significantly };
 
-/// One damped Gauss–Newton move of vertex i in its tangent plane (2×2 system, Levenberg damping
-/// `mu`, updated): the first try `over_relaxation` times the step, then damped until the local
-/// energy decreases.
+/// One damped Gauss–Newton move of the vertex in `slot` in its tangent plane (2×2 system,
+/// Levenberg damping `mu`, updated): the first try `over_relaxation` times the step, then damped
+/// until the local energy decreases. `positions` and `corners` in slot order (OptimizerTables).
 /// Accepted significantly: the decrease exceeds the activity threshold (options), relative to
 /// the smaller of the vertex's energy and `mean_vertex_energy`.
-Move move_vertex(const Topology& topo, const std::vector<Corner>& corners, std::vector<Vec3>& s, int i, double& mu,
+Move move_vertex(const Corner* first, const Corner* last, std::vector<Vec3>& positions, std::size_t slot, double& mu,
                  const OptimizeOptions& options, double over_relaxation, double mean_vertex_energy) {
-  const auto iv = u(i);
-  const Vec3 x = s[iv];
-  const LocalEval e0 = local_energy(topo, corners, s, i, x, options.angle_weight, true, options.regularization);
+  const auto position = [&positions](int other) -> const Vec3& { return positions[u(other)]; };
+  const Vec3 x = positions[slot];
+  const LocalEval e0 = local_energy(first, last, position, x, options.angle_weight, true, options.regularization);
   if (!e0.valid) return Move::skipped;
   const Vec3 t1 = (std::abs(x.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(x).normalized();
   const Vec3 t2 = x.cross(t1);
@@ -1268,9 +1251,9 @@ Move move_vertex(const Topology& topo, const std::vector<Corner>& corners, std::
     const double factor = -relaxation / (h00 * h11 - h01 * h01);
     const Eigen::Vector2d d(factor * (h11 * grad2.x() - h01 * grad2.y()), factor * (h00 * grad2.y() - h01 * grad2.x()));
     const Vec3 y = (x + P * d).normalized();
-    const LocalEval e1 = local_energy(topo, corners, s, i, y, options.angle_weight, false, options.regularization);
+    const LocalEval e1 = local_energy(first, last, position, y, options.angle_weight, false, options.regularization);
     if (e1.valid && e1.energy < e0.energy) {
-      s[iv] = y;
+      positions[slot] = y;
       mu = std::max(m * 0.3, 1e-4);
       return e0.energy - e1.energy > options.activity_threshold * (std::min(e0.energy, mean_vertex_energy) + 1e-12)
                  ? Move::accepted_significantly
@@ -1289,17 +1272,61 @@ int sweep_limit(const OptimizeOptions& options) {
   return options.angle_weight > default_angle_weight ? 2000 : 200;
 }
 
+/// The optimizer's view of the mesh in visit order: the vertices of colour class 0, then those
+/// of class 1, and so on, each class in vertex order; a vertex's place in it is its slot. A sweep
+/// then reads the corner table front to back, and the positions of each class lie together,
+/// where in vertex order every class strides across all of them (the loads of a corner and of
+/// the neighbours' positions were about a third of the local energy's time on spiky_120k).
 struct AreaOptimizer::Tables {
-  std::vector<Corner> corners;
-  std::vector<std::vector<int>> colours;
+  std::vector<int> vertex_of_slot, slot_of_vertex;
+  std::vector<std::size_t> class_offsets;  // the slots of class c: [class_offsets[c], class_offsets[c + 1])
+  std::vector<int> corner_offsets;         // the corners of slot q: [corner_offsets[q], corner_offsets[q + 1])
+  std::vector<Corner> corners;             // j and k as slots
+  std::vector<int> nbr_offsets, nbrs;      // the neighbours of each slot, as slots
+  Tables(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets);
 };
 
+AreaOptimizer::Tables::Tables(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets) {
+  Tables& t = *this;
+  const std::size_t nv = mesh.vertices.size();
+  t.class_offsets.push_back(0);
+  for (const auto& colour : colour_classes(topo, nv)) {
+    t.vertex_of_slot.insert(t.vertex_of_slot.end(), colour.begin(), colour.end());
+    t.class_offsets.push_back(t.vertex_of_slot.size());
+  }
+  t.slot_of_vertex.assign(nv, -1);
+  for (std::size_t q = 0; q < nv; ++q) t.slot_of_vertex[u(t.vertex_of_slot[q])] = static_cast<int>(q);
+  t.corner_offsets.assign(nv + 1, 0);
+  t.nbr_offsets.assign(nv + 1, 0);
+  for (std::size_t q = 0; q < nv; ++q) {
+    const auto i = u(t.vertex_of_slot[q]);
+    t.corner_offsets[q + 1] = t.corner_offsets[q] + topo.face_offsets[i + 1] - topo.face_offsets[i];
+    t.nbr_offsets[q + 1] = t.nbr_offsets[q] + topo.nbr_offsets[i + 1] - topo.nbr_offsets[i];
+  }
+  t.corners.resize(topo.vfaces.size());
+  t.nbrs.resize(topo.nbrs.size());
+  const auto slots = static_cast<std::ptrdiff_t>(nv);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t slot = 0; slot < slots; ++slot) {
+    const auto q = u(slot);
+    const auto i = u(t.vertex_of_slot[q]);
+    Corner* corner = &t.corners[u(t.corner_offsets[q])];
+    for (int r = topo.face_offsets[i]; r < topo.face_offsets[i + 1]; ++r, ++corner) {
+      const int f = topo.vfaces[u(r)];
+      const auto& face = mesh.faces[u(f)];
+      const int c = face[0] == static_cast<int>(i) ? 0 : (face[1] == static_cast<int>(i) ? 1 : 2);
+      const int j = face[u((c + 1) % 3)], k = face[u((c + 2) % 3)];
+      const Vec3 &pi = mesh.vertices[i], &pj = mesh.vertices[u(j)], &pk = mesh.vertices[u(k)];
+      *corner = {t.slot_of_vertex[u(j)], t.slot_of_vertex[u(k)], targets[u(f)],
+                 cot_angle(pi, pj, pk),  cot_angle(pj, pk, pi),  cot_angle(pk, pi, pj)};
+    }
+    int* nbr = &t.nbrs[u(t.nbr_offsets[q])];
+    for (int r = topo.nbr_offsets[i]; r < topo.nbr_offsets[i + 1]; ++r) *nbr++ = t.slot_of_vertex[u(topo.nbrs[u(r)])];
+  }
+}
+
 AreaOptimizer::AreaOptimizer(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets)
-    : mesh_(mesh),
-      topo_(topo),
-      targets_(targets),
-      tables_(std::make_unique<Tables>(
-          Tables{corner_table(mesh, topo, targets), colour_classes(topo, mesh.vertices.size())})) {}
+    : mesh_(mesh), topo_(topo), targets_(targets), tables_(std::make_unique<Tables>(mesh, topo, targets)) {}
 
 AreaOptimizer::~AreaOptimizer() = default;
 
@@ -1308,8 +1335,11 @@ double AreaOptimizer::vertex_energy(const std::vector<Vec3>& s, int vertex, cons
   if (vertex < 0 || u(vertex) >= s.size() || s.size() != mesh_.vertices.size())
     throw std::invalid_argument("vertex " + std::to_string(vertex) + " of " + std::to_string(s.size()) +
                                 " positions for a mesh of " + std::to_string(mesh_.vertices.size()) + " vertices");
-  const LocalEval e = local_energy(topo_, tables_->corners, s, vertex, x, options.angle_weight, gradient != nullptr,
-                                   options.regularization);
+  const Tables& t = *tables_;
+  const auto q = u(t.slot_of_vertex[u(vertex)]);
+  const auto position = [&](int slot) -> const Vec3& { return s[u(t.vertex_of_slot[u(slot)])]; };
+  const LocalEval e = local_energy(&t.corners[u(t.corner_offsets[q])], t.corners.data() + t.corner_offsets[q + 1],
+                                   position, x, options.angle_weight, gradient != nullptr, options.regularization);
   if (gradient) *gradient = e.grad;
   return e.valid ? e.energy : std::numeric_limits<double>::quiet_NaN();
 }
@@ -1329,19 +1359,18 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
     throw std::invalid_argument("positions: " + std::to_string(s.size()) + " for a mesh of " +
                                 std::to_string(mesh_.vertices.size()) + " vertices");
   const Mesh& mesh = mesh_;
-  const Topology& topo = topo_;
   const std::vector<double>& targets = targets_;
+  const Tables& t = *tables_;
   const auto start = std::chrono::steady_clock::now();
   const std::size_t nv = s.size();
-  const std::vector<Corner>& corners = tables_->corners;
   // The faces' terms in parallel, summed in face order: the same bits on any thread count.
   std::vector<double> face_energy(mesh.faces.size());
   auto total_energy = [&] {
     const auto nf = static_cast<std::ptrdiff_t>(mesh.faces.size());
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t f = 0; f < nf; ++f) {
-      const auto& t = mesh.faces[u(f)];
-      const double A = signed_spherical_triangle_area(s[u(t[0])], s[u(t[1])], s[u(t[2])]);
+      const auto& face = mesh.faces[u(f)];
+      const double A = signed_spherical_triangle_area(s[u(face[0])], s[u(face[1])], s[u(face[2])]);
       const double T = targets[u(f)];
       const double Ae = options.regularization > 0
                             ? 0.5 * (A + std::sqrt(A * A + 4 * options.regularization * options.regularization * T * T))
@@ -1357,14 +1386,17 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
   result.energy_start = total_energy();
   // Each face's energy is part of its three vertices' local energies.
   const double mean_vertex_energy = 3 * result.energy_start / static_cast<double>(nv);
+  // The positions, the damping and the active set in slot order (Tables).
+  std::vector<Vec3> positions(nv);
+  for (std::size_t q = 0; q < nv; ++q) positions[q] = s[u(t.vertex_of_slot[q])];
   std::vector<double> mu(nv, 1e-3);  // per-vertex Levenberg damping
   // Active set: a vertex is revisited while it or a neighbour moved noticeably.
   std::vector<char> active(nv, 1), next_active(nv, 0);
-  if (options.start_active.size() == nv) active = options.start_active;
+  if (options.start_active.size() == nv)
+    for (std::size_t q = 0; q < nv; ++q) active[q] = options.start_active[u(t.vertex_of_slot[q])];
   // Gauss–Seidel, one colour class at a time: vertices of one colour share no face, so their
   // moves are independent and run in parallel. Small classes run serially: a parallel region per
   // class and sweep costs more than it saves there, and much more when the machine is loaded.
-  const std::vector<std::vector<int>>& colours = tables_->colours;
   const int max_sweeps = sweep_limit(options);
   // Over-relaxed moves only where the area error is above its noise level (OptimizeOptions).
   result.over_relaxation = result.energy_start < plain_steps_below_face_energy * static_cast<double>(mesh.faces.size())
@@ -1373,19 +1405,20 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
   for (int sweep = 0; sweep < max_sweeps; ++sweep) {
     std::size_t visited = 0;
     std::fill(next_active.begin(), next_active.end(), 0);
-    for (const auto& colour : colours) {
-      const auto count = static_cast<std::ptrdiff_t>(colour.size());
-#pragma omp parallel for schedule(dynamic, 256) reduction(+ : visited) if (count >= 4096)
-      for (std::ptrdiff_t c = 0; c < count; ++c) {
-        const int i = colour[static_cast<std::size_t>(c)];
-        const auto iv = u(i);
-        if (!active[iv]) continue;
+    for (std::size_t colour = 0; colour + 1 < t.class_offsets.size(); ++colour) {
+      const auto first = static_cast<std::ptrdiff_t>(t.class_offsets[colour]);
+      const auto last = static_cast<std::ptrdiff_t>(t.class_offsets[colour + 1]);
+#pragma omp parallel for schedule(dynamic, 256) reduction(+ : visited) if (last - first >= 4096)
+      for (std::ptrdiff_t slot = first; slot < last; ++slot) {
+        const auto q = u(slot);
+        if (!active[q]) continue;
         ++visited;
-        if (move_vertex(topo, corners, s, i, mu[iv], options, result.over_relaxation, mean_vertex_energy) ==
-            Move::accepted_significantly) {
-          std::atomic_ref<char>(next_active[iv]).store(1, std::memory_order_relaxed);
-          for (int k = topo.nbr_offsets[iv]; k < topo.nbr_offsets[iv + 1]; ++k)
-            std::atomic_ref<char>(next_active[u(topo.nbrs[u(k)])]).store(1, std::memory_order_relaxed);
+        if (move_vertex(t.corners.data() + t.corner_offsets[q], t.corners.data() + t.corner_offsets[q + 1], positions,
+                        q, mu[q], options, result.over_relaxation,
+                        mean_vertex_energy) == Move::accepted_significantly) {
+          std::atomic_ref<char>(next_active[q]).store(1, std::memory_order_relaxed);
+          for (int k = t.nbr_offsets[q]; k < t.nbr_offsets[q + 1]; ++k)
+            std::atomic_ref<char>(next_active[u(t.nbrs[u(k)])]).store(1, std::memory_order_relaxed);
         }
       }
     }
@@ -1395,6 +1428,7 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (visited == 0 || elapsed > options.time_budget_s) break;
   }
+  for (std::size_t q = 0; q < nv; ++q) s[u(t.vertex_of_slot[q])] = positions[q];
   result.energy_end = total_energy();
   if (result.sweeps == 0) result.energy_end = result.energy_start;
   return result;
