@@ -1140,64 +1140,88 @@ struct LocalEval {
 /// Energy of the faces [first, last) around one vertex with that vertex at position x; the
 /// others at position(slot).
 /// Area term log²(A/T) with A the signed spherical area; MIPS term on the chordal triangle.
+/// Each pass runs over a block of faces before the next starts, the calls to log together: one
+/// face at a time, every face was a chain of dependent divisions and a call (around which all
+/// registers are saved), with little for the processor to overlap. The arithmetic and the order
+/// of the sums are those of one face at a time, so the results are the same bit for bit.
 template <class Position>
 LocalEval local_energy(const Corner* first, const Corner* last, const Position& position, const Vec3& x, double lambda,
                        bool with_derivatives, double eps = 0) {
   LocalEval e;
-  for (const Corner* corner_it = first; corner_it != last; ++corner_it) {
-    const Corner& corner = *corner_it;
-    const Vec3& pj = position(corner.j);
-    const Vec3& pk = position(corner.k);
-    const Vec3 jk = pj.cross(pk);
-    const double N = x.dot(jk);
-    const double D = 1 + x.dot(pj) + pj.dot(pk) + pk.dot(x);
-    const double T = corner.target;
+  constexpr std::ptrdiff_t block = 8;
+  for (; first < last; first += block) {
+    const int n = static_cast<int>(std::min(block, last - first));
+    Vec3 pj[block], pk[block], jk[block];
+    double N[block], D[block], A[block], ratio[block], r[block];
+    for (int f = 0; f < n; ++f) {
+      pj[f] = position(first[f].j);
+      pk[f] = position(first[f].k);
+      jk[f] = pj[f].cross(pk[f]);
+      N[f] = x.dot(jk[f]);
+      D[f] = 1 + x.dot(pj[f]) + pj[f].dot(pk[f]) + pk[f].dot(x);
+    }
     if (eps > 0) {
       // Regularised (untangling) mode: A_eps = (A + sqrt(A² + 4ε²T²))/2 > 0 also for inverted
       // faces, so vertices may pass through inverted states (Garanzha et al.'s continuation).
-      const double A = triangle_area_from_det(N, D);
-      const double root = std::sqrt(A * A + 4 * eps * eps * T * T);
-      const double Ae = 0.5 * (A + root);
-      const double r = std::log(Ae / T);
-      e.energy += r * r;
-      if (!with_derivatives) continue;
-      // dA/dx = 2 (D jk − N (pj + pk)) / (N² + D²), dr = (1 + A/root)/2 · dA/Ae: one division
-      const Vec3 dr = ((1 + A / root) / ((N * N + D * D) * Ae)) * (D * jk - N * (pj + pk));
-      e.grad += 2 * r * dr;
-      e.gn += 2 * dr * dr.transpose();
+      double root[block], Ae[block];
+      for (int f = 0; f < n; ++f) {
+        const double T = first[f].target;
+        A[f] = triangle_area_from_det(N[f], D[f]);
+        root[f] = std::sqrt(A[f] * A[f] + 4 * eps * eps * T * T);
+        Ae[f] = 0.5 * (A[f] + root[f]);
+        ratio[f] = Ae[f] / T;
+      }
+      for (int f = 0; f < n; ++f) r[f] = std::log(ratio[f]);
+      for (int f = 0; f < n; ++f) {
+        e.energy += r[f] * r[f];
+        if (!with_derivatives) continue;
+        // dA/dx = 2 (D jk − N (pj + pk)) / (N² + D²), dr = (1 + A/root)/2 · dA/Ae: one division
+        const Vec3 dr =
+            ((1 + A[f] / root[f]) / ((N[f] * N[f] + D[f] * D[f]) * Ae[f])) * (D[f] * jk[f] - N[f] * (pj[f] + pk[f]));
+        e.grad += 2 * r[f] * dr;
+        e.gn += 2 * dr * dr.transpose();
+      }
       continue;
     }
-    if (!(N > 0)) {
-      e.valid = false;
-      return e;
+    Vec3 nrm[block];
+    double A2[block];
+    for (int f = 0; f < n; ++f) {
+      if (!(N[f] > 0)) {
+        e.valid = false;
+        return e;
+      }
+      A[f] = triangle_area_from_det(N[f], D[f]);
+      ratio[f] = A[f] / first[f].target;
+      // chordal triangle (x, pj, pk): twice its area
+      nrm[f] = (pj[f] - x).cross(pk[f] - x);
+      A2[f] = nrm[f].norm();
+      if (!(A2[f] > 0)) {
+        e.valid = false;
+        return e;
+      }
     }
-    const double A = triangle_area_from_det(N, D);
-    const double r = std::log(A / T);
-    // chordal triangle (x, pj, pk); cot of mesh angles at corners i, j, k
-    const double ci = corner.cot_i, cj = corner.cot_j, ck = corner.cot_k;
-    const Vec3 ej = pj - x, ek = pk - x;
-    const Vec3 nrm = ej.cross(ek);
-    const double A2 = nrm.norm();  // twice the chordal area
-    if (!(A2 > 0)) {
-      e.valid = false;
-      return e;
+    for (int f = 0; f < n; ++f) r[f] = std::log(ratio[f]);
+    for (int f = 0; f < n; ++f) {
+      // cot of mesh angles at corners i, j, k
+      const double ci = first[f].cot_i, cj = first[f].cot_j, ck = first[f].cot_k;
+      const Vec3 ej = pj[f] - x, ek = pk[f] - x;
+      // Σ_e cot(opposite) l_e²: edge jk opposite i, edge (x,pk) opposite j, edge (x,pj) opposite k
+      const double C = ci * (pj[f] - pk[f]).squaredNorm() + cj * ek.squaredNorm() + ck * ej.squaredNorm();
+      const double mips = C / (2 * A2[f]) - 1;  // = (σ1/σ2 + σ2/σ1)/2 − 1 ≥ 0
+      e.energy += r[f] * r[f] + lambda * mips;
+      if (!with_derivatives) continue;
+      // dr = dA/dx / A (dA/dx as above); one division for each vector, not one per coordinate
+      const Vec3 dr = (2 / ((N[f] * N[f] + D[f] * D[f]) * A[f])) * (D[f] * jk[f] - N[f] * (pj[f] + pk[f]));
+      e.grad += 2 * r[f] * dr;
+      e.gn += 2 * dr * dr.transpose();
+      const Vec3 dC = -2 * cj * ek - 2 * ck * ej;
+      const double inv_A2 = 1 / A2[f];
+      const Vec3 dA2 = inv_A2 * (pj[f] - pk[f]).cross(nrm[f]);
+      const Vec3 dm = (0.5 * inv_A2 * inv_A2) * (dC * A2[f] - C * dA2);
+      e.grad += lambda * dm;
+      // crude curvature of the MIPS term: isotropic, from its scale C / A2 per squared length
+      e.gn += lambda * (std::abs(ci) + std::abs(cj) + std::abs(ck) + 1) / A2[f] * Eigen::Matrix3d::Identity();
     }
-    // Σ_e cot(opposite) l_e²: edge jk opposite i, edge (x,pk) opposite j, edge (x,pj) opposite k
-    const double C = ci * (pj - pk).squaredNorm() + cj * ek.squaredNorm() + ck * ej.squaredNorm();
-    const double mips = C / (2 * A2) - 1;  // = (σ1/σ2 + σ2/σ1)/2 − 1 ≥ 0
-    e.energy += r * r + lambda * mips;
-    if (!with_derivatives) continue;
-    // dr = dA/dx / A (dA/dx as above); one division for each vector, not one per coordinate
-    const Vec3 dr = (2 / ((N * N + D * D) * A)) * (D * jk - N * (pj + pk));
-    e.grad += 2 * r * dr;
-    e.gn += 2 * dr * dr.transpose();
-    const Vec3 dC = -2 * cj * ek - 2 * ck * ej;
-    const double inv_A2 = 1 / A2;
-    const Vec3 dA2 = inv_A2 * (pj - pk).cross(nrm);
-    const Vec3 dm = (0.5 * inv_A2 * inv_A2) * (dC * A2 - C * dA2);
-    e.grad += lambda * dm;
-    // crude curvature of the MIPS term: isotropic, from its scale C / A2 per squared length
-    e.gn += lambda * (std::abs(ci) + std::abs(cj) + std::abs(ck) + 1) / A2 * Eigen::Matrix3d::Identity();
   }
   return e;
 }
