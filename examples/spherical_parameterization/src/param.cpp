@@ -1121,7 +1121,7 @@ std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std:
 namespace {
 
 /// One face seen from one of its vertices i, with everything the local energy of i reads:
-/// the other two vertices (counter-clockwise, as slots: OptimizerTables), the face's target area
+/// the other two vertices (counter-clockwise, as slots: AreaOptimizer::Tables), the face's target area
 /// and the cotangents of the mesh angles at i, j and k (MIPS term). Stored contiguously per
 /// vertex, so a local energy reads one block instead of following vertex → face → (vertices,
 /// target, cotangents) indirections (igea_134k: the optimization about 20 % faster).
@@ -1252,7 +1252,7 @@ enum class Move { skipped, rejected, accepted, accepted_significantly };
 
 /// One damped Gauss–Newton move of the vertex in `slot` in its tangent plane (2×2 system,
 /// Levenberg damping `mu`, updated): the first try `over_relaxation` times the step, then damped
-/// until the local energy decreases. `positions` and `corners` in slot order (OptimizerTables).
+/// until the local energy decreases. `positions` and `corners` in slot order (AreaOptimizer::Tables).
 /// Accepted significantly: the decrease exceeds the activity threshold (options), relative to
 /// the smaller of the vertex's energy and `mean_vertex_energy`.
 Move move_vertex(const Corner* first, const Corner* last, std::vector<Vec3>& positions, std::size_t slot, double& mu,
@@ -1351,7 +1351,7 @@ AreaOptimizer::Tables::Tables(const Mesh& mesh, const Topology& topo, const std:
 }
 
 AreaOptimizer::AreaOptimizer(const Mesh& mesh, const Topology& topo, const std::vector<double>& targets)
-    : mesh_(mesh), topo_(topo), targets_(targets), tables_(std::make_unique<Tables>(mesh, topo, targets)) {}
+    : mesh_(mesh), targets_(targets), tables_(std::make_unique<Tables>(mesh, topo, targets)) {}
 
 AreaOptimizer::~AreaOptimizer() = default;
 
