@@ -444,7 +444,7 @@ class LaplacianSolver {
     place_in_pivot_order(n, triplets);
     // The factor's symbolic structure is that of P A Pᵀ already: with the identity as its order
     // it factorises permuted_ as it is. A second analysis in natural order gave the same
-    // structure, but as a new factor, whose values (120 MB on spiky_120k) were faulted in and
+    // structure, but as a new factor, whose values (126 MB on spiky_120k) were faulted in and
     // zeroed again.
     for (Eigen::Index k = 0; k < n; ++k) pivot_order[k] = static_cast<int>(k);
     if (auto* inverse = static_cast<int*>(factor_->IPerm))
