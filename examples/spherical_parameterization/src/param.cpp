@@ -431,8 +431,8 @@ class LaplacianSolver {
   /// order, its values written in place. cholmod_factorize then reads the matrix as it is, where
   /// with a permutation it transposes it twice (cholmod_factorize.c), and the triplets skip
   /// setFromTriplets (capsule40_120k, 16 systems: about 0.02 s a system of 0.19 s). The first
-  /// system goes the plain way: a single one (most meshes) would not repay the permuted copy and
-  /// its slots (2 M unknowns: about 1 s with the second analysis this path once made).
+  /// system goes the plain way: a single one (most meshes) would not repay building the permuted
+  /// copy and its slots.
   void write_in_place(Eigen::Index n, const Triplets& triplets) {
     if (in_place_) {
       write_values(triplets);
