@@ -1,5 +1,6 @@
 // Initial map, Möbius balancing, untangling, area optimization, subdivision.
 #include "param.hpp"
+#include "split_cholesky.hpp"
 
 #include <Eigen/Geometry>
 #include <Eigen/SparseCholesky>
@@ -14,6 +15,7 @@
 #include <future>
 #include <iterator>
 #include <limits>
+#include <memory>
 #include <numeric>
 #include <sdot/linear_solver.hpp>
 #include <stdexcept>
@@ -232,6 +234,10 @@ namespace {
 /// for one ordering of 0.1 s), or CHOLMOD's supernodal Cholesky from `cholmod_from_unknowns`,
 /// analysed once, in the order (set_order_makers: the plane, then the graph nested dissection)
 /// its symbolic analysis finds the fewest flops for.
+/// On CHOLMOD's path, from the second system on, a split that the first system's analysis
+/// planned (SplitCholesky: a small separator between two halves, as across a tube) factorises
+/// and solves the halves on two threads (capsule40_120k, 14 systems: the initial map 2.77-2.81 s
+/// -> 1.99-2.02 s).
 /// The METIS ordering runs on the second core while the first system is factorised with AMD;
 /// the reweightings (if any) use it. The matrix comes as triplets, in the same order at every
 /// reweighting: from the second, their values go straight to their places in the permuted lower
@@ -277,15 +283,20 @@ class LaplacianSolver {
       // The first system in the chosen order, as CHOLMOD permutes it; from the second, the
       // permuted lower triangle in place (write_in_place).
       Eigen::SparseMatrix<double> first_system;
-      if (!factor_) {
+      if (!factor_ && !split_) {
         first_system.resize(n, n);
         first_system.setFromTriplets(triplets.begin(), triplets.end());
         first_system.makeCompressed();
         analyse(first_system);
       } else {
         write_in_place(n, triplets);
+        if (planned_split_) start_split();
       }
       Triplets().swap(triplets);  // released before the factorisation (2 M unknowns: 240 MB)
+      if (split_) {
+        split_->factorize(permuted_);
+        return;
+      }
       cholmod_sparse view = Eigen::viewAsCholmod(in_place_ ? permuted_ : first_system);
       view.stype = -1;
       bool factorised = false;
@@ -324,6 +335,7 @@ class LaplacianSolver {
   /// Solves for every column of `rhs` (the CHOLMOD path: both at once, one pass over the factor).
   [[nodiscard]] Eigen::MatrixXd solve(const Eigen::MatrixXd& rhs) {
 #ifdef SDOT_HAVE_CHOLMOD
+    if (split_) return pivots_.transpose() * split_->solve(pivots_ * rhs);
     if (use_cholmod_) {
       Eigen::MatrixXd b = in_place_ ? Eigen::MatrixXd(pivots_ * rhs) : rhs;  // in place: a factor of P A Pᵀ
       cholmod_dense view = Eigen::viewAsCholmod(b);
@@ -362,15 +374,8 @@ class LaplacianSolver {
     // brain scale the supernodes are large anyway: brain_48k and igea_134k Loop-subdivided twice
     // (775k and 2.1M unknowns) took 24.6 and 42.2 s with them against 23.4 and 41.2 s without,
     // and peaked at 1,496 and 3,515 MB against 1,123 and 2,590 MB.
-    const bool coarse = lower.rows() <= coarse_supernodes_up_to;
-    const auto start = [coarse](cholmod_common& common) {
-      cholmod_start(&common);
-      common.supernodal = CHOLMOD_SUPERNODAL;
-      if (coarse) {
-        common.nrelax[0] = 16, common.nrelax[1] = 64, common.nrelax[2] = 256;
-        common.zrelax[0] = 0.8, common.zrelax[1] = 0.2, common.zrelax[2] = 0.1;
-      }
-      common.final_asis = 1;
+    const auto start = [coarse = lower.rows() <= coarse_supernodes_up_to](cholmod_common& common) {
+      start_common(common, coarse);
       common.nmethods = 1;
       common.method[0].ordering = CHOLMOD_GIVEN;
     };
@@ -407,7 +412,33 @@ class LaplacianSolver {
     pending_orders_.clear();
     factor_ = best.factor;
     if (!factor_) common_.method[0].ordering = CHOLMOD_AMD, factor_ = cholmod_analyze(&view, &common_);
-    if (factor_) fault_in_numeric_factor();
+    if (!factor_) return;
+    fault_in_numeric_factor();
+    planned_split_ = std::make_unique<SplitCholesky>();
+    if (!planned_split_->plan(*factor_)) planned_split_.reset();
+  }
+
+  /// CHOLMOD's settings for the Tutte systems: coarse supernodes (see analyse) up to
+  /// coarse_supernodes_up_to unknowns.
+  static void start_common(cholmod_common& common, bool coarse) {
+    cholmod_start(&common);
+    common.supernodal = CHOLMOD_SUPERNODAL;
+    if (coarse) {
+      common.nrelax[0] = 16, common.nrelax[1] = 64, common.nrelax[2] = 256;
+      common.zrelax[0] = 0.8, common.zrelax[1] = 0.2, common.zrelax[2] = 0.1;
+    }
+    common.final_asis = 1;
+  }
+
+  /// From the second system on (a single one would not repay the setup: the halves' matrices,
+  /// their analyses and their values' first writes, brain_48k's initial map 0.21 s -> 0.33 s):
+  /// the halves of the split that the first system's analysis planned.
+  void start_split() {
+    auto split = std::move(planned_split_);
+    const bool coarse = permuted_.rows() <= coarse_supernodes_up_to;
+    if (!split->prepare(permuted_, [coarse](cholmod_common& common) { start_common(common, coarse); })) return;
+    split_ = std::move(split);
+    cholmod_free_factor(&factor_, &common_);
   }
 
   /// Allocates the factor's values (as cholmod_super_numeric would at the first factorisation)
@@ -492,7 +523,9 @@ class LaplacianSolver {
   cholmod_common common_{};
   bool common_started_ = false;
   cholmod_factor* factor_ = nullptr;
-  bool in_place_ = false;  // write_in_place
+  bool in_place_ = false;                         // write_in_place
+  std::unique_ptr<SplitCholesky> planned_split_;  // analyse: a split of the second system on
+  std::unique_ptr<SplitCholesky> split_;          // start_split
   std::future<Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>> pending_order_;
   // P, mapping an unknown to its pivot position: METIS's (Eigen's path) or CHOLMOD's (in place)
   Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> pivots_;

@@ -621,6 +621,20 @@ TEST(Stages, StretchReweightingOpensADeeplyCrushedTubeInFewSolves) {
   EXPECT_LE(r.flips, m.faces.size() / 200);
 }
 
+TEST(Stages, StretchReweightingOpensADeeplyCrushedTubeOnCholmodsPath) {
+  // The same tube on CHOLMOD's path: from the second system on, a tube's systems are factorised
+  // in two halves on two threads (SplitCholesky), cut across the tube by a ring of a few hundred
+  // unknowns.
+  const Mesh m = test::capsule(84, 40);
+  ASSERT_GE(static_cast<long>(m.vertices.size()), cholmod_from_unknowns + 3);
+  const ReweightingOutcome r = reweighting_outcome(m);
+  EXPECT_LT(r.plain_q, -25.0);
+  EXPECT_GE(r.reweightings, 4);  // the split systems, not only the first
+  EXPECT_LE(r.reweightings, 16);
+  EXPECT_GT(r.reweighted_q, -9.0);
+  EXPECT_LE(r.flips, m.faces.size() / 200);
+}
+
 TEST(Stages, CrushingIsJudgedOnTheLastMapWhenTheReweightingsRunOut) {
   // With no (or too few) reweightings allowed, the crushing the caller's fallbacks judge is that
   // of the map returned: a capsule 40 radii long went to the OT crushed by e^-33 when it was not
