@@ -18,11 +18,14 @@ namespace sphparam {
 /// From this many unknowns the Tutte systems are factorised by CHOLMOD's supernodal Cholesky,
 /// which is faster there than Eigen's LDLᵀ (igea_134k: 0.61 s against 1.09 s). The Newton
 /// systems go to the library's default solver (multigrid-preconditioned CG at these sizes).
-/// Below it Eigen's smaller factors (METIS order) win when there are many reweightings
-/// (armadillo_43k, 5 systems: initial map 0.54 s against 0.83 s); from about 45k unknowns
-/// CHOLMOD wins (spiky_60k: 1.00 s against 0.50 s, folds_60k 0.52 s against 0.22 s, lion_50k
-/// 0.30 s against 0.25 s), where Eigen's first system, in AMD order, has far more fill.
-inline constexpr long cholmod_from_unknowns = 45000;
+/// Below it Eigen's LDLᵀ, its first system in AMD order and the others in METIS's (computed on
+/// the other core meanwhile). From 20,000 rather than 45,000 unknowns (interleaved, the initial
+/// map): spiky_25k 0.29-0.30 s -> 0.13-0.14 s, folds_25k 0.17 s -> 0.06-0.08 s, capsule40_25k
+/// (16 systems, split in halves) 0.58 s -> 0.44 s, capsule_25k 0.67 s -> 0.50 s, bunny_35k
+/// 0.54-0.85 s -> 0.51-0.54 s; but armadillo_43k (11 systems) 0.61-0.65 s -> 0.71-0.76 s, where
+/// METIS's order needs a fifth of the flops of the nested dissections CHOLMOD's path makes
+/// (6.4e7 against 3.5e8) and takes 0.25 s to compute. Below 20,000 within the noise.
+inline constexpr long cholmod_from_unknowns = 20000;
 /// Up to this many unknowns CHOLMOD amalgamates the Tutte factor's supernodes more than by
 /// default: fewer, larger supernodes are faster at 120k unknowns; at 775k and 2.1M they cost
 /// memory and no time (param.cpp, LaplacianSolver::analyse). The bound lies between.
