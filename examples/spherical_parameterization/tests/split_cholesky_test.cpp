@@ -109,14 +109,19 @@ double relative_residual(const Eigen::SparseMatrix<double>& lower, const Eigen::
   return worst;
 }
 
+/// Plans and prepares `split` for `ordered`'s matrix, which must split.
+void plan_and_prepare(SplitCholesky& split, const Ordered& ordered) {
+  ASSERT_TRUE(split.plan(ordered.analysis()));
+  ASSERT_TRUE(split.prepare(ordered.lower(), Ordered::start));
+}
+
 TEST(SplitCholesky, SolvesALongGridInTwoHalvesAsOneFactorisationDoes) {
   // A grid 16 wide and 2,000 long, like a tube: its top separator is a few dozen columns
   // across, below it two halves of about 16,000 unknowns each.
   const Eigen::SparseMatrix<double> first = grid_laplacian(16, 2000, 6.0, 1);
   const Ordered ordered(first);
   SplitCholesky split;
-  ASSERT_TRUE(split.plan(ordered.analysis()));
-  ASSERT_TRUE(split.prepare(ordered.lower(), Ordered::start));
+  ASSERT_NO_FATAL_FAILURE(plan_and_prepare(split, ordered));
   EXPECT_GT(split.separator_size(), 0u);
   EXPECT_LT(split.separator_size(), 200u);
   std::mt19937 random(7);
@@ -154,8 +159,7 @@ TEST(SplitCholesky, SaysSoWhenTheMatrixIsNotPositiveDefinite) {
   const Eigen::SparseMatrix<double> matrix = grid_laplacian(16, 2000, 2.0, 3);
   const Ordered ordered(matrix);
   SplitCholesky split;
-  ASSERT_TRUE(split.plan(ordered.analysis()));
-  ASSERT_TRUE(split.prepare(ordered.lower(), Ordered::start));
+  ASSERT_NO_FATAL_FAILURE(plan_and_prepare(split, ordered));
   // −K in a half: a half's factorisation fails.
   const Eigen::SparseMatrix<double> negative = -ordered.lower();
   EXPECT_THROW(split.factorize(negative), std::runtime_error);
