@@ -413,9 +413,10 @@ class LaplacianSolver {
     factor_ = best.factor;
     if (!factor_) common_.method[0].ordering = CHOLMOD_AMD, factor_ = cholmod_analyze(&view, &common_);
     if (!factor_) return;
-    fault_in_numeric_factor();
+    // planned before the factor's values are allocated: the plan's scratch never adds to them
     planned_split_ = std::make_unique<SplitCholesky>();
     if (!planned_split_->plan(*factor_)) planned_split_.reset();
+    fault_in_numeric_factor();
   }
 
   /// CHOLMOD's settings for the Tutte systems: coarse supernodes (see analyse) up to
