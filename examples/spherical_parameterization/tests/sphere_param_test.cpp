@@ -625,12 +625,12 @@ TEST(Stages, StretchReweightingOpensADeeplyCrushedTubeOnCholmodsPath) {
   // The same tube on CHOLMOD's path: from the second system on, a tube's systems are factorised
   // in two halves on two threads (SplitCholesky), cut across the tube by a ring of a few hundred
   // unknowns.
-  const Mesh m = test::capsule(84, 40);
+  const Mesh m = test::capsule(56, 40);
   ASSERT_GE(static_cast<long>(m.vertices.size()), cholmod_from_unknowns + 3);
   const ReweightingOutcome r = reweighting_outcome(m);
   EXPECT_LT(r.plain_q, -25.0);
-  EXPECT_GE(r.reweightings, 4);  // the split systems, not only the first
-  EXPECT_LE(r.reweightings, 16);
+  EXPECT_GE(r.reweightings, 4);   // the split systems, not only the first
+  EXPECT_LE(r.reweightings, 20);  // 17 when written (23,130 vertices, a separator of 230)
   EXPECT_GT(r.reweighted_q, -9.0);
   EXPECT_LE(r.flips, m.faces.size() / 200);
 }
