@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cmath>
+#include <cstddef>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -16,6 +17,14 @@ namespace sphparam {
 
 using Vec3 = Eigen::Vector3d;
 using Face = std::array<int, 3>;
+
+/// An index (vertex, face, slot: non-negative where used) as a container position.
+inline std::size_t u(int i) {
+  return static_cast<std::size_t>(i);
+}
+inline std::size_t u(std::ptrdiff_t i) {
+  return static_cast<std::size_t>(i);
+}
 
 struct Mesh {
   std::vector<Vec3> vertices;

@@ -24,13 +24,6 @@
 namespace sphparam {
 namespace {
 
-inline std::size_t u(std::ptrdiff_t i) {
-  return static_cast<std::size_t>(i);
-}
-inline std::size_t u(int i) {
-  return static_cast<std::size_t>(i);
-}
-
 double cot_angle(const Vec3& p, const Vec3& q, const Vec3& r) {  // cot of the angle at p
   const Vec3 a = q - p, b = r - p;
   const double s = a.cross(b).norm();

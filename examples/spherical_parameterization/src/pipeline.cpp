@@ -25,9 +25,6 @@ using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
 }
-inline std::size_t u(int i) {
-  return static_cast<std::size_t>(i);
-}
 
 std::string fmt_g(double x) {
   char b[32];

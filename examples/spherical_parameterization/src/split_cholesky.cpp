@@ -1,5 +1,7 @@
 #include "split_cholesky.hpp"
 
+#include "mesh.hpp"  // u
+
 #ifdef SDOT_HAVE_CHOLMOD
 #include <Eigen/CholmodSupport>
 #include <algorithm>
@@ -17,10 +19,6 @@ namespace {
 constexpr double worthwhile_share = 0.8;
 /// Separators of more columns are not tried: their dense Schur complement costs more than a half.
 constexpr std::size_t max_separator = 3000;
-
-std::size_t u(int i) {
-  return static_cast<std::size_t>(i);
-}
 
 }  // namespace
 
@@ -260,10 +258,9 @@ void SplitCholesky::factorize(const Eigen::SparseMatrix<double>& lower) {
   for (auto& half : halves_) {
     const auto local = static_cast<Eigen::Index>(half.separator_slots.size());
     for (Eigen::Index b = 0; b < local; ++b) {
-      const int column = half.separator_slots[u(static_cast<int>(b))];
+      const int column = half.separator_slots[u(b)];
       schur(column, column) -= 2 * diagonal(column);
-      for (Eigen::Index a = b; a < local; ++a)
-        schur(half.separator_slots[u(static_cast<int>(a))], column) += half.update(a, b);
+      for (Eigen::Index a = b; a < local; ++a) schur(half.separator_slots[u(a)], column) += half.update(a, b);
     }
   }
   schur_.compute(schur);
@@ -274,7 +271,7 @@ void SplitCholesky::factorize(const Eigen::SparseMatrix<double>& lower) {
 void SplitCholesky::forward_half(Half& half, const Eigen::MatrixXd& rhs) {
   const auto m = static_cast<Eigen::Index>(half.columns.size());
   Eigen::MatrixXd b = Eigen::MatrixXd::Zero(m + static_cast<Eigen::Index>(half.separator_slots.size()), rhs.cols());
-  for (Eigen::Index j = 0; j < m; ++j) b.row(j) = rhs.row(half.columns[u(static_cast<int>(j))]);
+  for (Eigen::Index j = 0; j < m; ++j) b.row(j) = rhs.row(half.columns[u(j)]);
   cholmod_dense view = Eigen::viewAsCholmod(b);
   cholmod_dense* y = cholmod_solve(CHOLMOD_L, half.factor, &view, &half.common);
   if (!y) throw std::runtime_error("the Tutte system could not be solved (CHOLMOD)");
@@ -286,15 +283,14 @@ void SplitCholesky::backward_half(Half& half, const Eigen::MatrixXd& separator_s
   const auto m = static_cast<Eigen::Index>(half.columns.size());
   const auto local = static_cast<Eigen::Index>(half.separator_slots.size());
   Eigen::MatrixXd on_separator(local, separator_solution.cols());
-  for (Eigen::Index a = 0; a < local; ++a)
-    on_separator.row(a) = separator_solution.row(half.separator_slots[u(static_cast<int>(a))]);
+  for (Eigen::Index a = 0; a < local; ++a) on_separator.row(a) = separator_solution.row(half.separator_slots[u(a)]);
   half.forward.bottomRows(local) = half.corner.triangularView<Eigen::Lower>().transpose() * on_separator;
   cholmod_dense view = Eigen::viewAsCholmod(half.forward);
   cholmod_dense* w = cholmod_solve(CHOLMOD_Lt, half.factor, &view, &half.common);
   if (!w) throw std::runtime_error("the Tutte system could not be solved (CHOLMOD)");
   const Eigen::Map<const Eigen::MatrixXd> solution(static_cast<const double*>(w->x), half.forward.rows(),
                                                    half.forward.cols());
-  for (Eigen::Index j = 0; j < m; ++j) out.row(half.columns[u(static_cast<int>(j))]) = solution.row(j);
+  for (Eigen::Index j = 0; j < m; ++j) out.row(half.columns[u(j)]) = solution.row(j);
   cholmod_free_dense(&w, &half.common);
 }
 
@@ -307,8 +303,7 @@ Eigen::MatrixXd SplitCholesky::solve(const Eigen::MatrixXd& rhs) {
   for (auto& half : halves_) {
     const auto local = static_cast<Eigen::Index>(half.separator_slots.size());
     const Eigen::MatrixXd pushed = half.corner.triangularView<Eigen::Lower>() * half.forward.bottomRows(local);
-    for (Eigen::Index a = 0; a < local; ++a)
-      separator_rhs.row(half.separator_slots[u(static_cast<int>(a))]) += pushed.row(a);
+    for (Eigen::Index a = 0; a < local; ++a) separator_rhs.row(half.separator_slots[u(a)]) += pushed.row(a);
   }
   const Eigen::MatrixXd separator_solution = schur_.solve(separator_rhs);
   // Backward: L_iᵀ [x_i; x_S] = [y_i; L_SS,iᵀ x_S] gives x_i = A_i⁻¹ (b_i − B_i x_S).

@@ -9,10 +9,6 @@
 namespace sphparam {
 namespace {
 
-inline std::size_t u(int i) {
-  return static_cast<std::size_t>(i);
-}
-
 double triangle_area(const Mesh& mesh, int a, int b, int c) {
   const Vec3& p = mesh.vertices[u(a)];
   return 0.5 * (mesh.vertices[u(b)] - p).cross(mesh.vertices[u(c)] - p).norm();
