@@ -986,7 +986,7 @@ bool untangle_chart_patch(const ChartPatch& patch, Eigen::MatrixX2d& x, std::siz
 }
 
 std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& s, int max_rings,
-                                    int* patches, int* chart_untangles) {
+                                    int* patches, int* chart_untangles, std::size_t untangling_work_per_face) {
   const std::size_t nv = s.size();
   auto det = [&](std::size_t f) {
     const auto& t = mesh.faces[f];
@@ -997,9 +997,9 @@ std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std:
   // Work bounds that keep the repair linear in the mesh size however many faces are flipped:
   // the scan for the next flipped face moves forward (it starts again from 0 only after a pass
   // that repaired something), the BFS resets only what it touched, and the chart untangling of
-  // all patches together gets at most 200 face evaluations per mesh face (tubes_25k: 730 flipped
-  // faces took minutes at 2·10⁷ per patch).
-  std::size_t untangle_budget = 200 * mesh.faces.size();
+  // all patches together gets at most `untangling_work_per_face` face evaluations per mesh face
+  // (tubes_25k: 730 flipped faces took minutes at 2·10⁷ per patch, against 200 per mesh face).
+  std::size_t untangle_budget = untangling_work_per_face * mesh.faces.size();
   std::size_t cursor = 0;
   bool repaired_in_pass = false;
   std::vector<int> touched;

@@ -675,6 +675,20 @@ TEST(Stages, PatchRepairReembedsFoldedDisk) {
   const std::size_t before = count_flips(m, s);
   ASSERT_GT(before, 0u);
   const auto damaged = s;
+  {
+    // The smallest patch needs the chart untangling (Floater's embedding folds there); without
+    // untangling work the next ring's Floater embedding repairs the fold, moving more vertices.
+    auto with_work = s, without_work = s;
+    int chart_untangles = 0;
+    EXPECT_EQ(repair_flips_by_patches(m, topo, with_work, 64, nullptr, &chart_untangles), 0u);
+    EXPECT_EQ(chart_untangles, 1);
+    EXPECT_EQ(repair_flips_by_patches(m, topo, without_work, 64, nullptr, nullptr, 0), 0u);
+    EXPECT_EQ(count_flips(m, without_work), 0u);
+    std::size_t moved = 0, moved_without_work = 0;
+    for (std::size_t v = 0; v < s.size(); ++v)
+      moved += with_work[v] != s[v], moved_without_work += without_work[v] != s[v];
+    EXPECT_GT(moved_without_work, moved);
+  }
   EXPECT_EQ(repair_flips_by_patches(m, topo, s), 0u);
   EXPECT_EQ(count_flips(m, s), 0u);
   // local: vertices far from the damage keep their positions exactly
