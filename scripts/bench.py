@@ -245,6 +245,10 @@ def density_table(rows):
 # ----------------------------------------------------------------------- spherical parameterization
 
 
+# Runs per parameterization and hard-shape row (1 with --quick): see median_run.
+PARAM_REPEATS = 3
+
+
 def median_run(command, report_path, repeats, ok_codes=(0,)):
     """Runs `command` `repeats` times; the run of median wall time (its wall, peak RSS and
     report) stands for the row. The machine's speed drifts between runs (the same binary on
@@ -399,7 +403,7 @@ def main():
         evaluator = meshes.parent / "tools" / "eval_sphere_map.py"
         if meshes.is_dir():
             rows = param_rows(build, meshes, evaluator if evaluator.exists() else None,
-                              15_000 if args.quick else 10 ** 9, 1 if args.quick else 3)
+                              15_000 if args.quick else 10 ** 9, 1 if args.quick else PARAM_REPEATS)
             raw["param"] = [{k: v for k, v in r.items() if k != "report"} | {"times": r["report"]["times"]}
                             for r in rows]
             blocks["param"] = param_table(rows)
@@ -407,7 +411,7 @@ def main():
             log(f"{meshes} not found: parameterization table skipped")
 
     if "hard" in args.sections and not args.quick:
-        rows = hard_rows(build, 3)
+        rows = hard_rows(build, PARAM_REPEATS)
         raw["hard"] = [{k: v for k, v in r.items() if k != "report"} | {"times": r["report"]["times"]} for r in rows]
         blocks["hard"] = hard_table(rows)
 

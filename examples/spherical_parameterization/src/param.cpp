@@ -998,7 +998,8 @@ std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std:
   // the scan for the next flipped face moves forward (it starts again from 0 only after a pass
   // that repaired something), the BFS resets only what it touched, and the chart untangling of
   // all patches together gets at most `untangling_work_per_face` face evaluations per mesh face
-  // (tubes_25k: 730 flipped faces took minutes at 2·10⁷ per patch, against 200 per mesh face).
+  // (tubes_25k: 730 flipped faces took minutes at 2·10⁷ per patch, against the default
+  // chart_untangling_work_per_face, 200).
   std::size_t untangle_budget = untangling_work_per_face * mesh.faces.size();
   std::size_t cursor = 0;
   bool repaired_in_pass = false;

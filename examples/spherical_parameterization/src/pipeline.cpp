@@ -411,12 +411,11 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
             // (armadillo_43k: 2 flips left after ε = 0.1, then 8 more levels of 60 sweeps, 13 s).
             // A trial, kept only if it repairs every fold: a quarter of the chart-untangling work
             // of the repair after the last level. arm.off has a fold whose rings leave no room:
-            // failed chart untanglings spent the whole 200 face evaluations per mesh face on it
-            // before the next level's sweeps opened it (untangling 0.27-0.28 s -> 0.22 s).
-            constexpr std::size_t trial_untangling_work_per_face = 50;
+            // failed chart untanglings spent the whole share on it before the next level's sweeps
+            // opened it (untangling 0.27-0.28 s -> 0.22 s).
             std::vector<Vec3> trial = s;
             if (repair_flips_by_patches(mesh, topo, trial, 64, &R.fallbacks.flip_patches, &R.fallbacks.chart_untangles,
-                                        trial_untangling_work_per_face) == 0) {
+                                        chart_untangling_work_per_face / 4) == 0) {
               s = std::move(trial);
               flips = 0;
               say("  untangling: the last flipped faces re-embedded in patches");
