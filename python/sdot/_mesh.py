@@ -60,6 +60,7 @@ def sphere_parameterization(
     angle_weight=0.005,
     separation_threshold=5e-5,
     separation_delta=0.1,
+    coarse_transport=8.0,
     progress=False,
 ):
     """Maps a closed genus-0 triangle mesh onto the unit sphere, area-preserving and without
@@ -76,6 +77,9 @@ def sphere_parameterization(
         towards conformal).
     sweeps : sweeps of the final optimization at most; None: 200, or 2000 when `angle_weight`
         is above 0.005 (``--sweeps``).
+    coarse_transport : from 40,000 vertices, the sites move by the displacement of a coarse OT
+        on representatives this many times sqrt(4π/n) apart before the OT, which saves some of
+        its Newton steps (``--coarse-transport``); 0 disables it.
     progress : print the stage lines on stderr, or a callable that receives each line.
 
     Returns
@@ -107,6 +111,7 @@ def sphere_parameterization(
         "angle_weight": angle_weight,
         "separation_threshold": float(separation_threshold),
         "separation_delta": float(separation_delta),
+        "coarse_transport": float(coarse_transport),
     }
     if sweeps is not None:
         options["sweeps"] = int(sweeps)

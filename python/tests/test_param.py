@@ -90,3 +90,10 @@ def test_bad_angle_weight_is_a_value_error(bad):
     vertices, faces = bumpy_mesh(1)
     with pytest.raises(ValueError, match="angle_weight"):
         sdot.sphere_parameterization(vertices, faces, angle_weight=bad)
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf")])
+def test_bad_coarse_transport_is_a_value_error(bad):
+    vertices, faces = bumpy_mesh(1)
+    with pytest.raises(ValueError, match="coarse_transport"):
+        sdot.sphere_parameterization(vertices, faces, coarse_transport=bad)

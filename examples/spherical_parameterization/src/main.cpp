@@ -28,8 +28,9 @@ namespace {
 const char* usage =
     "usage: sdot-sphere-param INPUT -o OUTPUT [--report REPORT.json] [--svg HISTOGRAM.svg]\n"
     "                         [--target-weights FILE] [--refine N] [--max-refine N] [--reweightings N]\n"
-    "                         [--no-optimize] [--ot-tolerance T] [--sweeps N] [--angle-weight L]\n"
-    "                         [--ply-ascii] [--format FMT] [--input-format FMT] [--radius R] [--quiet]\n"
+    "                         [--no-optimize] [--coarse-transport D] [--ot-tolerance T] [--sweeps N]\n"
+    "                         [--angle-weight L] [--ply-ascii] [--format FMT] [--input-format FMT]\n"
+    "                         [--radius R] [--quiet]\n"
     "\n"
     "Maps a closed genus-0 triangle mesh onto the unit sphere without area distortion and without\n"
     "flipped faces (semi-discrete optimal transport with sdot's sphere geometry).\n"
@@ -53,6 +54,9 @@ const char* usage =
     "  --separation-threshold X  run site-separation passes while the shortest edge of the map\n"
     "                         is below X*sqrt(4pi/N) (default 5e-5; 0 disables them)\n"
     "  --separation-delta D   separation radius of their representatives, times sqrt(4pi/N) (default 0.1)\n"
+    "  --coarse-transport D   from 40,000 vertices, move the sites by the displacement of a\n"
+    "                         coarse OT on representatives D*sqrt(4pi/N) apart before the OT\n"
+    "                         (default 8; 0 disables it)\n"
     "  --ot-tolerance T       max relative mass error of the OT solve (default 0.05)\n"
     "  --sweeps N             sweeps of the area optimization at most (default 200; 2000 when\n"
     "                         --angle-weight is above 0.005)\n"
@@ -179,6 +183,8 @@ int main(int argc, char** argv) {
       options.optimize = false;
     else if (a == "--separation-delta")
       options.separation_delta = number_option(a, value("a number"), false);
+    else if (a == "--coarse-transport")
+      options.coarse_transport_spacing = number_option(a, value("a number"), true);
     else if (a == "--separation-threshold")
       options.min_spacing = number_option(a, value("a number"), true);
     else if (a == "--ot-tolerance")

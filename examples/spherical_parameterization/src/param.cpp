@@ -1342,6 +1342,13 @@ int sweep_limit(const OptimizeOptions& options) {
   return options.angle_weight > default_angle_weight ? 2000 : 200;
 }
 
+double visit_limit(const OptimizeOptions& options) {
+  if (options.max_visits_per_vertex >= 0) return options.max_visits_per_vertex;
+  if (options.max_sweeps >= 0 || options.angle_weight > default_angle_weight)
+    return std::numeric_limits<double>::infinity();
+  return 20;
+}
+
 /// The optimizer's view of the mesh in visit order: the vertices of colour class 0, then those
 /// of class 1, and so on, each class in vertex order; a vertex's place in it is its slot. A sweep
 /// then reads the corner table front to back, and the positions of each class lie together,
@@ -1423,6 +1430,8 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
   if (!(std::isfinite(options.angle_weight) && options.angle_weight >= 0))
     throw std::invalid_argument("angle_weight: must be a finite number >= 0, got " +
                                 std::to_string(options.angle_weight));
+  if (std::isnan(options.max_visits_per_vertex))
+    throw std::invalid_argument("max_visits_per_vertex: must be a number, got NaN");
   if (!(options.over_relaxation > 0 && options.over_relaxation < 2))
     throw std::invalid_argument("over_relaxation: must be in (0, 2), got " + std::to_string(options.over_relaxation));
   if (s.size() != mesh_.vertices.size())
@@ -1468,6 +1477,7 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
   // moves are independent and run in parallel. Small classes run serially: a parallel region per
   // class and sweep costs more than it saves there, and much more when the machine is loaded.
   const int max_sweeps = sweep_limit(options);
+  const double max_visits = visit_limit(options) * static_cast<double>(nv);
   // Over-relaxed moves only where the area error is above its noise level (OptimizeOptions).
   result.over_relaxation = result.energy_start < plain_steps_below_face_energy * static_cast<double>(mesh.faces.size())
                                ? 1.0
@@ -1496,7 +1506,7 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
     result.sweeps = sweep + 1;
     result.visits += visited;
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (visited == 0 || elapsed > options.time_budget_s) break;
+    if (visited == 0 || elapsed > options.time_budget_s || static_cast<double>(result.visits) >= max_visits) break;
   }
   for (std::size_t q = 0; q < nv; ++q) s[u(t.vertex_of_slot[q])] = positions[q];
   result.energy_end = total_energy();

@@ -2,15 +2,18 @@
 #include "pipeline.hpp"
 #include "sub_resolution.hpp"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <numeric>
 #include <optional>
+#include <stdexcept>
 #include <unordered_map>
 
 #ifdef SPHPARAM_HAVE_SPHERE
@@ -113,46 +116,60 @@ OtOutcome solve_ot(const std::vector<Vec3>& sites, const std::vector<double>& ma
   return out;
 }
 
+/// Points hashed into cubes of side `cell`: the 27 cubes around a point hold every point within
+/// `cell` of it (and maybe others, whose cube's hash collides).
+class PointGrid {
+ public:
+  explicit PointGrid(double cell) : cell_(cell) {}
+  void insert(const Vec3& p, int index) { cubes_[key(p, 0, 0, 0)].push_back(index); }
+  /// body(index) for the points of the 27 cubes around p, in a fixed order
+  template <class Body>
+  void for_each_near(const Vec3& p, Body&& body) const {
+    for (long long dx = -1; dx <= 1; ++dx)
+      for (long long dy = -1; dy <= 1; ++dy)
+        for (long long dz = -1; dz <= 1; ++dz) {
+          const auto it = cubes_.find(key(p, dx, dy, dz));
+          if (it == cubes_.end()) continue;
+          for (int index : it->second) body(index);
+        }
+  }
+
+ private:
+  std::uint64_t key(const Vec3& p, long long dx, long long dy, long long dz) const {
+    const auto x = static_cast<long long>(std::floor(p.x() / cell_)) + dx;
+    const auto y = static_cast<long long>(std::floor(p.y() / cell_)) + dy;
+    const auto z = static_cast<long long>(std::floor(p.z() / cell_)) + dz;
+    return static_cast<std::uint64_t>(x * 73856093LL) ^ static_cast<std::uint64_t>(y * 19349663LL) ^
+           static_cast<std::uint64_t>(z * 83492791LL);
+  }
+  double cell_;
+  std::unordered_map<std::uint64_t, std::vector<int>> cubes_;
+};
+
 /// Greedy δ-separated representatives (hash grid), each vertex joins its nearest one; one OT
 /// solve on the representatives with the cluster masses; each cluster is then moved rigidly
 /// (rotation taking its representative to the cell centroid) and scaled by the square root of
 /// the ratio of its cell area to its Voronoi area. Spreads exponentially crushed regions.
 std::string separate_clusters(std::vector<Vec3>& s, const std::vector<double>& masses, double delta, OtRecord& rec) {
   const std::size_t n = s.size();
-  auto cell_of = [&](const Vec3& p) {
-    return std::array<long long, 3>{static_cast<long long>(std::floor(p.x() / delta)),
-                                    static_cast<long long>(std::floor(p.y() / delta)),
-                                    static_cast<long long>(std::floor(p.z() / delta))};
-  };
-  auto hash = [](const std::array<long long, 3>& c) {
-    return static_cast<std::uint64_t>(c[0] * 73856093LL) ^ static_cast<std::uint64_t>(c[1] * 19349663LL) ^
-           static_cast<std::uint64_t>(c[2] * 83492791LL);
-  };
-  std::unordered_map<std::uint64_t, std::vector<int>> grid;
+  PointGrid grid(delta);
   std::vector<int> reps;
   // heaviest first: big vertices are good representatives
   std::vector<int> order(n);
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](int a, int b) { return masses[u(a)] > masses[u(b)]; });
   auto nearest = [&](const Vec3& p, double limit) {
-    const auto c = cell_of(p);
     int best = -1;
     double bd = limit * limit;
-    for (long long dx = -1; dx <= 1; ++dx)
-      for (long long dy = -1; dy <= 1; ++dy)
-        for (long long dz = -1; dz <= 1; ++dz) {
-          auto it = grid.find(hash({c[0] + dx, c[1] + dy, c[2] + dz}));
-          if (it == grid.end()) continue;
-          for (int r : it->second) {
-            const double d = (s[u(reps[u(r)])] - p).squaredNorm();
-            if (d < bd) bd = d, best = r;
-          }
-        }
+    grid.for_each_near(p, [&](int r) {
+      const double d = (s[u(reps[u(r)])] - p).squaredNorm();
+      if (d < bd) bd = d, best = r;
+    });
     return best;
   };
   for (int v : order)
     if (nearest(s[u(v)], delta) < 0) {
-      grid[hash(cell_of(s[u(v)]))].push_back(static_cast<int>(reps.size()));
+      grid.insert(s[u(v)], static_cast<int>(reps.size()));
       reps.push_back(v);
     }
   std::vector<int> owner(n);
@@ -191,6 +208,76 @@ std::string separate_clusters(std::vector<Vec3>& s, const std::vector<double>& m
   }
   return std::to_string(reps.size()) + " clusters, OT " + local.status + " in " + std::to_string(local.iterations) +
          " it";
+}
+
+/// Moves every site most of the way its OT will take it, at a coarse scale: δ-separated
+/// representatives (each vertex's mass goes to its nearest one) go to their OT cells' centroids,
+/// and each site follows the displacement field that a moving least-squares fit (linear in the
+/// site's tangent plane, weights (1 − r²/R²)³ within R = 2.5 δ) interpolates from theirs.
+/// The fine OT then starts nearer its solution: fewer of its damped Newton steps (spiky_120k 7 → 5).
+/// Leaves `s` as it is when the coarse OT fails, and says so.
+std::string coarse_transport(std::vector<Vec3>& s, const std::vector<double>& masses, double delta) {
+  const std::size_t n = s.size();
+  PointGrid grid(delta);
+  std::vector<Vec3> sites;
+  for (std::size_t v = 0; v < n; ++v) {
+    bool covered = false;
+    grid.for_each_near(s[v], [&](int r) { covered = covered || (sites[u(r)] - s[v]).squaredNorm() < delta * delta; });
+    if (!covered) grid.insert(s[v], static_cast<int>(sites.size())), sites.push_back(s[v]);
+  }
+  std::vector<double> cluster_masses(sites.size(), 0.0);
+  for (std::size_t v = 0; v < n; ++v) {
+    int nearest = 0;  // every vertex has a representative within δ
+    double nearest_distance = 1e300;
+    grid.for_each_near(s[v], [&](int r) {
+      const double d = (sites[u(r)] - s[v]).squaredNorm();
+      if (d < nearest_distance) nearest_distance = d, nearest = r;
+    });
+    cluster_masses[u(nearest)] += masses[v];
+  }
+  // A loose tolerance: the fine OT corrects what the coarse one leaves.
+  OtRecord coarse;
+  const OtOutcome o = solve_ot(
+      sites, cluster_masses, 1e-2, 40, [](const std::string&) {}, &coarse);
+  const std::string what = std::to_string(sites.size()) + " representatives, OT " + coarse.status + " in " +
+                           std::to_string(coarse.iterations) + " it";
+  if (!o.usable) return what + ": sites left where they were (" + coarse.message + ")";
+  const double radius = 2.5 * delta;
+  PointGrid reach(radius);
+  for (std::size_t r = 0; r < sites.size(); ++r) reach.insert(sites[r], static_cast<int>(r));
+  std::vector<Vec3> moved(n);
+#pragma omp parallel for schedule(dynamic, 1024)
+  for (std::ptrdiff_t vv = 0; vv < static_cast<std::ptrdiff_t>(n); ++vv) {
+    const auto v = u(vv);
+    const Vec3 e1 = s[v].unitOrthogonal(), e2 = s[v].cross(e1);
+    // normal equations of the fit: basis (1, tangent coordinates / R); columns of b: x, y, z
+    Eigen::Matrix3d normal = Eigen::Matrix3d::Zero(), b = Eigen::Matrix3d::Zero();
+    Vec3 weighted_sum = Vec3::Zero();
+    double total_weight = 0;
+    reach.for_each_near(s[v], [&](int r) {
+      const Vec3 d = sites[u(r)] - s[v];
+      const double q = d.squaredNorm() / (radius * radius);
+      if (q >= 1) return;
+      const double weight = (1 - q) * (1 - q) * (1 - q);
+      const Vec3 displacement = o.centroids[u(r)] - sites[u(r)];
+      weighted_sum += weight * displacement, total_weight += weight;
+      const Eigen::Vector3d basis(1, d.dot(e1) / radius, d.dot(e2) / radius);
+      normal += weight * basis * basis.transpose();
+      b += weight * basis * displacement.transpose();
+    });
+    Vec3 displacement = Vec3::Zero();
+    if (total_weight > 0) {
+      // the linear fit where the representatives around surround the site, their weighted mean elsewhere
+      displacement = weighted_sum / total_weight;
+      const Eigen::LDLT<Eigen::Matrix3d> fit(normal);
+      const Eigen::Vector3d pivots = fit.vectorD();
+      if (fit.isPositive() && pivots.minCoeff() > 1e-3 * pivots.maxCoeff())
+        displacement = fit.solve(b).row(0).transpose();
+    }
+    moved[v] = (s[v] + displacement).normalized();
+  }
+  s = std::move(moved);
+  return what;
 }
 #endif
 
@@ -311,6 +398,15 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
         const std::string note = separate_clusters(s, masses, options.separation_delta * h0, R.ot);
         ++R.fallbacks.separation_passes;
         record("separation_pass_" + std::to_string(pass + 1), since(tp), s, note);
+      }
+      // 2b. Coarse transport: the fine OT starts from sites moved by a coarse one. It saves 2-3
+      //     Newton steps of about 0.1 s per 60k sites; on smaller meshes the saving is smaller
+      //     than what the changed start costs the untangling (spiky_25k 0.91 s -> 1.21 s, arm.off
+      //     0.61 s -> 0.72 s in total).
+      if (options.coarse_transport_spacing > 0 && s.size() >= options.coarse_transport_from_vertices) {
+        const auto tc = Clock::now();
+        const std::string note = coarse_transport(s, masses, options.coarse_transport_spacing * h0);
+        record("coarse_transport", since(tc), s, note);
       }
     }
     // 2b–4. OT on the mesh vertices (and refined Diracs), centroids, untangling. Should flips
@@ -504,6 +600,9 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
 }
 
 PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
+  if (!(std::isfinite(options.coarse_transport_spacing) && options.coarse_transport_spacing >= 0))
+    throw std::invalid_argument("coarse_transport_spacing: must be a finite number >= 0, got " +
+                                std::to_string(options.coarse_transport_spacing));
   auto t = Clock::now();
   const MeshReduction reduction = options.sub_resolution_area_ratio > 0
                                       ? remove_sub_resolution_vertices(mesh, options.sub_resolution_area_ratio)

@@ -34,6 +34,11 @@ struct PipelineOptions {
   double min_spacing = 5e-5;
   /// Separation radius of the representatives, times sqrt(4π/N).
   double separation_delta = 0.1;
+  /// Meshes of at least coarse_transport_from_vertices vertices: before the OT, every site moves
+  /// by the displacement of an OT on representatives this far apart, times sqrt(4π/N), which
+  /// saves Newton steps of the OT (spiky_120k, armadillo_43k, spiky_60k: 7-8 → 5); 0: off.
+  double coarse_transport_spacing = 8;
+  std::size_t coarse_transport_from_vertices = 40000;
   /// When the reweighted Tutte map stays crushed, start from hierarchical_sphere_map instead
   /// (--coarse-to-fine). Without it, only a Tutte map crushed below rounding does (long thin
   /// tubes: tutte_sphere_map's `crushed_below_rounding`), where the OT cannot separate the

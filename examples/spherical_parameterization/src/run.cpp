@@ -125,14 +125,18 @@ RunResult run_parameterization(Mesh&& raw, const ReadInfo& info, PipelineOptions
                   {"refinement_levels", R.ot.refine},
                   {"height_range", R.ot.height_range},
                   {"error_history", R.ot.error_history}};
-  report["optimizer"] = {{"angle_weight", options.optimizer.angle_weight},
-                         {"sweep_limit", sweep_limit(options.optimizer)},
-                         {"over_relaxation", R.optimizer.over_relaxation},
-                         {"sweeps", R.optimizer.sweeps},
-                         {"visits", R.optimizer.visits},
-                         {"energy_start", R.optimizer.energy_start},
-                         {"energy_end", R.optimizer.energy_end},
-                         {"untangle_remaining_flips", R.untangle_remaining}};
+  report["optimizer"] = {
+      {"angle_weight", options.optimizer.angle_weight},
+      {"sweep_limit", sweep_limit(options.optimizer)},
+      // null: no limit
+      {"visit_limit_per_vertex",
+       std::isfinite(visit_limit(options.optimizer)) ? json(visit_limit(options.optimizer)) : json(nullptr)},
+      {"over_relaxation", R.optimizer.over_relaxation},
+      {"sweeps", R.optimizer.sweeps},
+      {"visits", R.optimizer.visits},
+      {"energy_start", R.optimizer.energy_start},
+      {"energy_end", R.optimizer.energy_end},
+      {"untangle_remaining_flips", R.untangle_remaining}};
   const FallbackCounts& fb = R.fallbacks;
   report["fallbacks"] = {{"total", fb.total()},
                          {"hierarchical_initial_map", fb.hierarchical_initial_map},

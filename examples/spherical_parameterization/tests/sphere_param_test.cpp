@@ -795,6 +795,18 @@ TEST(AngleWeight, SweepLimitFollowsTheWeight) {
   EXPECT_EQ(sweep_limit(o), 7);
 }
 
+TEST(AreaOptimizer, VisitLimitFollowsTheOtherLimits) {
+  OptimizeOptions o;
+  EXPECT_EQ(visit_limit(o), 20);  // automatic sweep limit, the default weight
+  o.angle_weight = 0.05;          // a conformal-leaning map needs its 2000 sweeps
+  EXPECT_EQ(visit_limit(o), std::numeric_limits<double>::infinity());
+  o.angle_weight = default_angle_weight;
+  o.max_sweeps = 300;  // an explicit sweep limit is not cut short
+  EXPECT_EQ(visit_limit(o), std::numeric_limits<double>::infinity());
+  o.max_visits_per_vertex = 3;  // an explicit visit limit wins
+  EXPECT_EQ(visit_limit(o), 3);
+}
+
 namespace {
 /// optimize_area rejects each of `values`, set by `set`, with an invalid_argument that names
 /// `field`, before it moves any vertex.
@@ -983,6 +995,25 @@ TEST(AreaOptimizer, OverRelaxationStopsAtTheNoiseLevelOfTheAreaError) {
   EXPECT_NE(relaxed, positions_after(projected, 1.0, plain_run));
 }
 
+TEST(AreaOptimizer, RunsStopAfterTheSweepThatReachesTheVisitLimit) {
+  const BalancedTutteStart start(3);
+  const std::size_t nv = start.map.size();
+  OptimizeOptions o;
+  o.max_sweeps = 200;
+  std::vector<Vec3> unlimited = start.map;
+  const auto free_run = optimize_area(start.m, start.topo, start.targets, unlimited, o);
+  ASSERT_GT(free_run.visits, 6 * nv);  // the limit below cuts this run short
+  o.max_visits_per_vertex = 2.5;
+  std::vector<Vec3> limited = start.map;
+  const auto limited_run = optimize_area(start.m, start.topo, start.targets, limited, o);
+  EXPECT_GE(static_cast<double>(limited_run.visits), 2.5 * static_cast<double>(nv));
+  EXPECT_LT(limited_run.visits, 4 * nv);  // at most one sweep (n visits) past the limit
+  EXPECT_LT(limited_run.sweeps, free_run.sweeps);
+  EXPECT_LT(limited_run.energy_end, limited_run.energy_start);
+  expect_option_rejected("max_visits_per_vertex", {std::numeric_limits<double>::quiet_NaN()},
+                         [](OptimizeOptions& options, double value) { options.max_visits_per_vertex = value; });
+}
+
 TEST(AreaOptimizer, OverRelaxationOutsideZeroToTwoIsRejected) {
   expect_option_rejected("over_relaxation", {0.0, -0.5, 2.0, std::numeric_limits<double>::quiet_NaN()},
                          [](OptimizeOptions& o, double omega) { o.over_relaxation = omega; });
@@ -1110,6 +1141,41 @@ TEST(Pipeline, SphereWithLongThinSpikes) {
 TEST(Pipeline, SphereWithVeryLongSpikes) {
   // crushed to e^-9 by the harmonic map (0.5% quantile of the log stretch): needs the reweighting
   expect_flip_free(test::spiky_sphere(4, 4, 16.0, 0.15), 0.15);
+}
+
+TEST(Pipeline, CoarseTransportStartsTheOtNearerItsSolution) {
+  // long spikes, crushed by the Tutte map: the OT moves the sites far
+  const Mesh m = test::spiky_sphere(4, 6, 4.0, 0.25);
+  PipelineOptions plain, coarse;
+  plain.coarse_transport_spacing = 0;
+  coarse.coarse_transport_from_vertices = 0;  // below its default size
+  const auto without = run(m, plain), with = run(m, coarse);
+  const auto has_stage = [](const PipelineResult& p) {
+    return std::any_of(p.stages.begin(), p.stages.end(), [](const auto& s) { return s.name == "coarse_transport"; });
+  };
+  EXPECT_FALSE(has_stage(without.pipeline));
+  ASSERT_TRUE(has_stage(with.pipeline));
+  for (const auto& stage : with.pipeline.stages)
+    if (stage.name == "coarse_transport") {
+      EXPECT_NE(stage.note.find("representatives, OT converged"), std::string::npos) << stage.note;
+      // the moved sites are nearer the OT's: their map's areas are nearer the targets
+      EXPECT_LT(stage.area_mean_abs, with.pipeline.stages.front().area_mean_abs);
+    }
+  EXPECT_LT(with.pipeline.ot.iterations, without.pipeline.ot.iterations);
+  EXPECT_EQ(with.metrics.flips, 0u);
+  EXPECT_LT(with.metrics.area_mean_abs, 0.15);
+  // the default size threshold: this mesh is below it
+  EXPECT_FALSE(has_stage(run(m).pipeline));
+  PipelineOptions bad;
+  for (double spacing : {-1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    bad.coarse_transport_spacing = spacing;
+    EXPECT_THROW(
+        try { parameterize(m, bad); } catch (const std::invalid_argument& e) {
+          EXPECT_NE(std::string(e.what()).find("coarse_transport_spacing"), std::string::npos) << e.what();
+          throw;
+        },
+        std::invalid_argument);
+  }
 }
 
 TEST(Report, FallbackActivationsAreCounted) {
