@@ -55,7 +55,7 @@ def sphere_parameterization(
     max_refine=1,
     reweightings=40,
     optimize=True,
-    ot_tolerance=0.05,
+    ot_tolerance=0.15,
     sweeps=None,
     angle_weight=0.005,
     separation_threshold=5e-5,

@@ -57,7 +57,7 @@ const char* usage =
     "  --coarse-transport D   from 40,000 vertices, move the sites by the displacement of a\n"
     "                         coarse OT on representatives D*sqrt(4pi/N) apart before the OT\n"
     "                         (default 8; 0 disables it)\n"
-    "  --ot-tolerance T       max relative mass error of the OT solve (default 0.05)\n"
+    "  --ot-tolerance T       max relative mass error of the OT solve (default 0.15)\n"
     "  --sweeps N             sweeps of the area optimization at most (default 200; 2000 when\n"
     "                         --angle-weight is above 0.005)\n"
     "  --angle-weight L       weight of the angle (MIPS) term against the area term in the\n"

@@ -26,7 +26,11 @@ struct PipelineOptions {
   /// error of about one cell (area mean|d| 0.08–0.12), which tighter masses do not reduce: on the
   /// 16 shared meshes 1e-4 took 1–2 more Newton iterations and left the final figures of 13 meshes
   /// unchanged in every printed digit (arm, cow_igl, lion_50k: area mean|d| within 0.6 %).
-  double ot_tolerance = 0.05;
+  /// The Newton iterate before the last is at 0.07–0.15 on most meshes (the last at 0.001–0.003):
+  /// 0.15 against 0.05 saved that iteration on 11 of the 34 shared and hard meshes (spiky_120k's
+  /// OT 1.32 s → 1.07 s) and left the final area mean|d| within 1.5 % on all but arm.off
+  /// (0.0138 → 0.0145) and the flips at 0.
+  double ot_tolerance = 0.15;
   int ot_max_iterations = 60;
   /// Stretch reweightings of the Tutte map at most (only while regions are crushed).
   int max_reweightings = 40;
