@@ -77,9 +77,9 @@ def sphere_parameterization(
         towards conformal).
     sweeps : sweeps of the final optimization at most; None: 200, or 2000 when `angle_weight`
         is above 0.005 (``--sweeps``).
-    coarse_transport : from 40,000 vertices, the sites move by the displacement of a coarse OT
-        on representatives this many times sqrt(4π/n) apart before the OT, which saves some of
-        its Newton steps (``--coarse-transport``); 0 disables it.
+    coarse_transport : from 40,000 to 500,000 vertices, the sites move by the displacement of a
+        coarse OT on representatives this many times sqrt(4π/n) apart before the OT, which saves
+        some of its Newton steps (``--coarse-transport``); 0 disables it.
     progress : print the stage lines on stderr, or a callable that receives each line.
 
     Returns

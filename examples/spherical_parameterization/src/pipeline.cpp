@@ -403,7 +403,8 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
       //     Newton steps of about 0.1 s per 60k sites; on smaller meshes the saving is smaller
       //     than what the changed start costs the untangling (spiky_25k 0.91 s -> 1.21 s, arm.off
       //     0.61 s -> 0.72 s in total).
-      if (options.coarse_transport_spacing > 0 && s.size() >= options.coarse_transport_from_vertices) {
+      if (options.coarse_transport_spacing > 0 && s.size() >= options.coarse_transport_from_vertices &&
+          s.size() <= options.coarse_transport_up_to_vertices) {
         const auto tc = Clock::now();
         const std::string note = coarse_transport(s, masses, options.coarse_transport_spacing * h0);
         record("coarse_transport", since(tc), s, note);

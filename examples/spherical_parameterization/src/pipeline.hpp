@@ -38,11 +38,16 @@ struct PipelineOptions {
   double min_spacing = 5e-5;
   /// Separation radius of the representatives, times sqrt(4π/N).
   double separation_delta = 0.1;
-  /// Meshes of at least coarse_transport_from_vertices vertices: before the OT, every site moves
-  /// by the displacement of an OT on representatives this far apart, times sqrt(4π/N), which
-  /// saves Newton steps of the OT (spiky_120k, armadillo_43k, spiky_60k: 7-8 → 5); 0: off.
+  /// Meshes of coarse_transport_from_vertices to coarse_transport_up_to_vertices vertices: before
+  /// the OT, every site moves by the displacement of an OT on representatives this far apart,
+  /// times sqrt(4π/N), which saves Newton steps of the OT (spiky_120k, armadillo_43k, spiky_60k:
+  /// 7-8 → 5); 0: off. At brain scale it saved one of 3 Newton iterations (igea_134k
+  /// Loop-subdivided twice, 2.1 M vertices: the OT 19.8 s → 14.1 s) but took 2.7 s itself, its OT
+  /// centroids folded 13 faces (0.8 s of untangling) and the final area mean|d| rose from
+  /// 0.00124 to 0.00148.
   double coarse_transport_spacing = 8;
   std::size_t coarse_transport_from_vertices = 40000;
+  std::size_t coarse_transport_up_to_vertices = 500000;
   /// When the reweighted Tutte map stays crushed, start from hierarchical_sphere_map instead
   /// (--coarse-to-fine). Without it, only a Tutte map crushed below rounding does (long thin
   /// tubes: tutte_sphere_map's `crushed_below_rounding`), where the OT cannot separate the

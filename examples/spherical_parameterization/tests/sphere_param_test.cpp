@@ -1164,8 +1164,11 @@ TEST(Pipeline, CoarseTransportStartsTheOtNearerItsSolution) {
   EXPECT_LT(with.pipeline.ot.iterations, without.pipeline.ot.iterations);
   EXPECT_EQ(with.metrics.flips, 0u);
   EXPECT_LT(with.metrics.area_mean_abs, 0.15);
-  // the default size threshold: this mesh is below it
+  // the default size window: this mesh is below it; a window below the mesh's size
   EXPECT_FALSE(has_stage(run(m).pipeline));
+  PipelineOptions small_window = coarse;
+  small_window.coarse_transport_up_to_vertices = m.vertices.size() - 1;
+  EXPECT_FALSE(has_stage(run(m, small_window).pipeline));
   PipelineOptions bad;
   for (double spacing : {-1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
     bad.coarse_transport_spacing = spacing;
