@@ -88,7 +88,9 @@ def sphere_parameterization(
     vertex that no face uses is projected radially from the vertex centroid), and the command's
     report as a dict (input statistics, stage times, Newton iterations, distortion metrics), with
     ``report["area_distortion"]`` holding the per-face log area ratios of the initial and final
-    maps (numpy arrays, for `sdot.plot.distortion_histogram`).
+    maps (numpy arrays, for `sdot.plot.distortion_histogram`). ``report["status"]`` is "ok",
+    "flipped_faces" (faces left flipped) or "ot_not_converged" (no flipped face, but the OT solve
+    stopped short of its tolerance, so the areas are not preserved; ``report["ot"]`` says why).
 
     Raises ValueError naming the defects for a mesh that is not a closed genus-0 manifold.
     """

@@ -297,6 +297,14 @@ int main(int argc, char** argv) {
                   "done in %.3f s: area mean|d| %.4f, std %.4f, max|d| %.3f, angle %.2f deg, flips %zu", total_s,
                   m1.area_mean_abs, m1.area_std, m1.area_max_abs, m1.angle_mean_abs_deg, m1.flips);
     progress(line);
+    if (run.status == "ot_not_converged") {
+      if (!quiet)
+        std::cerr << "warning: " << input << ": the OT solve did not converge ("
+                  << run.report["ot"]["status"].get<std::string>() << ": "
+                  << run.report["ot"]["message"].get<std::string>()
+                  << "); the map has no flipped face but does not preserve the areas\n";
+      return 4;
+    }
     return m1.flips == 0 ? 0 : 3;
   } catch (const FileError& e) {
     std::cerr << "error: " << e.what() << "\n";

@@ -15,8 +15,10 @@
 namespace sphparam {
 
 struct RunResult {
-  /// "ok", "flipped_faces", "invalid_input" (then `output` is empty and the report lists the
-  /// defects) or "failed" (an internal error: the map is not finite; `errors` says where).
+  /// "ok", "flipped_faces", "ot_not_converged" (flip-free, but the last OT solve stopped short of
+  /// its tolerance, so the areas are not those of the mesh; the report's `ot` says why),
+  /// "invalid_input" (then `output` is empty and the report lists the defects) or "failed" (an
+  /// internal error: the map is not finite; `errors` says where).
   std::string status;
   /// The mesh mapped onto the unit sphere: the input's referenced vertices in file order (a
   /// vertex that no face uses is dropped and the faces renumbered) and its faces in file order.

@@ -1181,6 +1181,23 @@ TEST(Pipeline, CoarseTransportStartsTheOtNearerItsSolution) {
   }
 }
 
+TEST(Report, AnOtThatDidNotConvergeIsNotOk) {
+  // one Newton iteration is not enough for an ellipsoid's masses: the map that the untangling
+  // and the optimization make of the unconverged centroids has no flipped face, but it is not
+  // the area-preserving map
+  const Mesh m = test::ellipsoid(3, 1, 1.5, 3);
+  PipelineOptions short_of_it;
+  short_of_it.ot_max_iterations = 1;
+  short_of_it.max_refine = 0;
+  const auto run = run_parameterization(m, ReadInfo{}, short_of_it, {}, false, "generated");
+  EXPECT_NE(run.report["ot"]["status"].get<std::string>(), "converged");
+  EXPECT_EQ(run.final_map.flips, 0u);
+  EXPECT_EQ(run.status, "ot_not_converged");
+  EXPECT_EQ(run.report["status"].get<std::string>(), "ot_not_converged");
+  // the same mesh with the default options
+  EXPECT_EQ(run_parameterization(m, ReadInfo{}, PipelineOptions{}, {}, false, "generated").status, "ok");
+}
+
 TEST(Report, FallbackActivationsAreCounted) {
   // an icosphere needs no fallback; the very long spikes need the OT rerun with more Diracs
   const auto report_of = [](const Mesh& m) {
