@@ -410,7 +410,7 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
         record("coarse_transport", since(tc), s, note);
       }
     }
-    // 2b–4. OT on the mesh vertices (and refined Diracs), centroids, untangling. Should flips
+    // 2c–4. OT on the mesh vertices (and refined Diracs), centroids, untangling. Should flips
     //       survive the untangling, the stage reruns from the same start with one more Dirac
     //       refinement level: finer Diracs sample the mesh better and leave fewer, smaller folds.
     // The OT start; `s` is rebuilt from it at every level (at 2 M vertices each copy is 52 MB).
