@@ -132,8 +132,6 @@ py::tuple sphere_parameterization(const py::array_t<double>& vertices, const py:
       throw sdot::InputError(key, "unknown option of sphere_parameterization");
   }
   if (!(options.ot_tolerance > 0)) throw sdot::InputError("ot_tolerance", "must be > 0");
-  if (!(std::isfinite(options.coarse_transport_spacing) && options.coarse_transport_spacing >= 0))
-    throw sdot::InputError("coarse_transport", "must be a finite number >= 0");
   if (!(std::isfinite(options.optimizer.angle_weight) && options.optimizer.angle_weight >= 0))
     throw sdot::InputError("angle_weight", "must be a finite number >= 0");
   std::vector<double> factors;

@@ -146,42 +146,54 @@ class PointGrid {
   std::unordered_map<std::uint64_t, std::vector<int>> cubes_;
 };
 
-/// Greedy δ-separated representatives (hash grid), each vertex joins its nearest one; one OT
+/// δ-separated representatives of the points `s` and the clusters around them.
+struct Clusters {
+  std::vector<Vec3> sites;     ///< the representatives' positions
+  std::vector<int> owner;      ///< per point: its nearest representative (an index into sites)
+  std::vector<double> masses;  ///< per representative: its cluster's summed mass
+};
+
+/// Greedy representatives (hash grid): a point, taken in `order`, becomes one when none is within
+/// δ of it; then each point joins its nearest one.
+Clusters cluster_around_representatives(const std::vector<Vec3>& s, const std::vector<double>& masses, double delta,
+                                        const std::vector<int>& order) {
+  Clusters c;
+  PointGrid grid(delta);
+  const auto nearest = [&](const Vec3& p) {
+    int best = -1;
+    double best_distance = delta * delta;
+    grid.for_each_near(p, [&](int r) {
+      const double d = (c.sites[u(r)] - p).squaredNorm();
+      if (d < best_distance) best_distance = d, best = r;
+    });
+    return best;
+  };
+  for (int v : order)
+    if (nearest(s[u(v)]) < 0) grid.insert(s[u(v)], static_cast<int>(c.sites.size())), c.sites.push_back(s[u(v)]);
+  c.owner.resize(s.size());
+  c.masses.assign(c.sites.size(), 0.0);
+  for (std::size_t v = 0; v < s.size(); ++v) {
+    const int r = std::max(nearest(s[v]), 0);  // always ≥ 0: every point has a representative within δ
+    c.owner[v] = r;
+    c.masses[u(r)] += masses[v];
+  }
+  return c;
+}
+
+/// Greedy δ-separated representatives, each vertex joins its nearest one; one OT
 /// solve on the representatives with the cluster masses; each cluster is then moved rigidly
 /// (rotation taking its representative to the cell centroid) and scaled by the square root of
 /// the ratio of its cell area to its Voronoi area. Spreads exponentially crushed regions.
 std::string separate_clusters(std::vector<Vec3>& s, const std::vector<double>& masses, double delta, OtRecord& rec) {
   const std::size_t n = s.size();
-  PointGrid grid(delta);
-  std::vector<int> reps;
   // heaviest first: big vertices are good representatives
   std::vector<int> order(n);
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](int a, int b) { return masses[u(a)] > masses[u(b)]; });
-  auto nearest = [&](const Vec3& p, double limit) {
-    int best = -1;
-    double bd = limit * limit;
-    grid.for_each_near(p, [&](int r) {
-      const double d = (s[u(reps[u(r)])] - p).squaredNorm();
-      if (d < bd) bd = d, best = r;
-    });
-    return best;
-  };
-  for (int v : order)
-    if (nearest(s[u(v)], delta) < 0) {
-      grid.insert(s[u(v)], static_cast<int>(reps.size()));
-      reps.push_back(v);
-    }
-  std::vector<int> owner(n);
-  std::vector<double> cmass(reps.size(), 0.0);
-  for (std::size_t v = 0; v < n; ++v) {
-    int r = nearest(s[v], 2 * delta);
-    if (r < 0) r = 0;  // cannot happen: every vertex has a representative within δ
-    owner[v] = r;
-    cmass[u(r)] += masses[v];
-  }
-  std::vector<Vec3> sites(reps.size());
-  for (std::size_t r = 0; r < reps.size(); ++r) sites[r] = s[u(reps[r])];
+  const Clusters clusters = cluster_around_representatives(s, masses, delta, order);
+  const std::vector<Vec3>& sites = clusters.sites;
+  const std::vector<int>& owner = clusters.owner;
+  const std::vector<double>& cmass = clusters.masses;
   OtRecord local;
   OtOutcome o = solve_ot(
       sites, cmass, 1e-6, 40, [](const std::string&) {}, &local);
@@ -194,9 +206,9 @@ std::string separate_clusters(std::vector<Vec3>& s, const std::vector<double>& m
   sphere.set_builder(sdot::Sphere::Builder::hull);
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(sites.size()));
   auto ev = sdot::evaluate(sphere, sdot::UniformDensity{}, std::span<const Vec3>(sites), zero, false);
-  std::vector<Eigen::Matrix3d> rot(reps.size());
-  std::vector<double> scale(reps.size());
-  for (std::size_t r = 0; r < reps.size(); ++r) {
+  std::vector<Eigen::Matrix3d> rot(sites.size());
+  std::vector<double> scale(sites.size());
+  for (std::size_t r = 0; r < sites.size(); ++r) {
     rot[r] = Eigen::Quaterniond::FromTwoVectors(sites[r], o.centroids[r]).toRotationMatrix();
     const double vor = ev.masses[static_cast<Eigen::Index>(r)];
     scale[r] = vor > 0 ? std::sqrt(std::max(o.cell_masses[r], 1e-300) / vor) : 1.0;
@@ -206,7 +218,7 @@ std::string separate_clusters(std::vector<Vec3>& s, const std::vector<double>& m
     const Vec3 offset = s[v] - sites[r];
     s[v] = (o.centroids[r] + scale[r] * (rot[r] * offset)).normalized();
   }
-  return std::to_string(reps.size()) + " clusters, OT " + local.status + " in " + std::to_string(local.iterations) +
+  return std::to_string(sites.size()) + " clusters, OT " + local.status + " in " + std::to_string(local.iterations) +
          " it";
 }
 
@@ -218,27 +230,14 @@ std::string separate_clusters(std::vector<Vec3>& s, const std::vector<double>& m
 /// Leaves `s` as it is when the coarse OT fails, and says so.
 std::string coarse_transport(std::vector<Vec3>& s, const std::vector<double>& masses, double delta) {
   const std::size_t n = s.size();
-  PointGrid grid(delta);
-  std::vector<Vec3> sites;
-  for (std::size_t v = 0; v < n; ++v) {
-    bool covered = false;
-    grid.for_each_near(s[v], [&](int r) { covered = covered || (sites[u(r)] - s[v]).squaredNorm() < delta * delta; });
-    if (!covered) grid.insert(s[v], static_cast<int>(sites.size())), sites.push_back(s[v]);
-  }
-  std::vector<double> cluster_masses(sites.size(), 0.0);
-  for (std::size_t v = 0; v < n; ++v) {
-    int nearest = 0;  // every vertex has a representative within δ
-    double nearest_distance = 1e300;
-    grid.for_each_near(s[v], [&](int r) {
-      const double d = (sites[u(r)] - s[v]).squaredNorm();
-      if (d < nearest_distance) nearest_distance = d, nearest = r;
-    });
-    cluster_masses[u(nearest)] += masses[v];
-  }
+  std::vector<int> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  const Clusters clusters = cluster_around_representatives(s, masses, delta, order);
+  const std::vector<Vec3>& sites = clusters.sites;
   // A loose tolerance: the fine OT corrects what the coarse one leaves.
   OtRecord coarse;
   const OtOutcome o = solve_ot(
-      sites, cluster_masses, 1e-2, 40, [](const std::string&) {}, &coarse);
+      sites, clusters.masses, 1e-2, 40, [](const std::string&) {}, &coarse);
   const std::string what = std::to_string(sites.size()) + " representatives, OT " + coarse.status + " in " +
                            std::to_string(coarse.iterations) + " it";
   if (!o.usable) return what + ": sites left where they were (" + coarse.message + ")";
