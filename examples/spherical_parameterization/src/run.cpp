@@ -130,12 +130,12 @@ RunResult run_parameterization(Mesh&& raw, const ReadInfo& info, PipelineOptions
                   {"refinement_levels", R.ot.refine},
                   {"height_range", R.ot.height_range},
                   {"error_history", R.ot.error_history}};
+  const double visits_per_vertex = visit_limit(options.optimizer);
   report["optimizer"] = {
       {"angle_weight", options.optimizer.angle_weight},
       {"sweep_limit", sweep_limit(options.optimizer)},
       // null: no limit
-      {"visit_limit_per_vertex",
-       std::isfinite(visit_limit(options.optimizer)) ? json(visit_limit(options.optimizer)) : json(nullptr)},
+      {"visit_limit_per_vertex", std::isfinite(visits_per_vertex) ? json(visits_per_vertex) : json(nullptr)},
       {"over_relaxation", R.optimizer.over_relaxation},
       {"sweeps", R.optimizer.sweeps},
       {"visits", R.optimizer.visits},
