@@ -11,6 +11,9 @@ function(sdot_target_warnings target)
     target_compile_options(${target} PRIVATE -fsanitize=${SDOT_SANITIZE} -fno-sanitize-recover=all
                                              -fno-omit-frame-pointer)
     target_link_options(${target} PRIVATE -fsanitize=${SDOT_SANITIZE})
+    if(SDOT_SANITIZE_EXCLUDE)
+      target_compile_options(${target} PRIVATE -fno-sanitize=${SDOT_SANITIZE_EXCLUDE})
+    endif()
   endif()
 endfunction()
 

@@ -21,8 +21,9 @@ if ! command -v clang++-14 > /dev/null; then
 fi
 
 # -O2: Eigen's fixed-size code needs inlining, or the coverage hooks dominate the solver harnesses.
+# Line tables only: the reports' stacks have files and lines, and the build is faster than with -g.
 cmake -S . -B "$build" -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g" -DSDOT_FUZZ=ON -DSDOT_BUILD_TESTS=OFF -DSDOT_BUILD_EXAMPLES=OFF \
+  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -gline-tables-only" -DSDOT_FUZZ=ON -DSDOT_BUILD_TESTS=OFF -DSDOT_BUILD_EXAMPLES=OFF \
   -DSDOT_BUILD_PYTHON=OFF > /dev/null
 cmake --build "$build" -j "$(nproc)" --target "${harnesses[@]/#/fuzz_}"
 /usr/bin/python3 scripts/fuzz_corpus.py "$build/fuzz/corpus" > /dev/null

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Packaging test: install sdot to a scratch prefix, then build and run a consumer with
-# find_package(sdot), and another with add_subdirectory.
+# find_package(sdot), and another with add_subdirectory (unoptimized: it compiles sdot's sources
+# again, in less than half the time of Release, and the consumer solves a 200-site problem).
 set -euo pipefail
 source_dir=$1
 build_dir=$2
@@ -19,7 +20,7 @@ add_subdirectory("$source_dir" sdot)
 add_executable(sub_consumer "$source_dir/examples/custom_problem/main.cpp")
 target_link_libraries(sub_consumer PRIVATE sdot::sdot)
 CMAKE
-cmake -S "$scratch/sub" -B "$scratch/sub/build" -DCMAKE_BUILD_TYPE=Release > /dev/null
+cmake -S "$scratch/sub" -B "$scratch/sub/build" -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG=-O0 > /dev/null
 cmake --build "$scratch/sub/build" -j 2 --target sub_consumer > /dev/null
 "$scratch/sub/build/sub_consumer" | tail -1
 echo "package consumers: OK"
