@@ -3,12 +3,12 @@
 #   scripts/test-sanitized.sh [BUILD_DIR]        (default: build-sanitized)
 # SDOT_SANITIZERS overrides the -fsanitize list (default address,undefined), SDOT_SANITIZE_EXCLUDE
 # the checks left out of it (default null,alignment: in g++ they are one check on every reference
-# and member access, 40 % of the compile time of Eigen's code; ASan still reports a null
-# dereference, and the fuzz build, scripts/fuzz.sh, keeps both checks on the readers). Any
-# sanitizer report stops the program, so it fails its test. Left out: the tests labelled `package`
-# and `install`, which build and install separate, unsanitized copies (they check packaging, not
-# memory, and run in the normal suite). -O1 with line tables only (-g1) keeps the stacks readable
-# and the run within CI's time.
+# and member access, 40 % of sphere.cpp's compile time, see docs/reliability.md; ASan still
+# reports a null dereference, and the fuzz build, scripts/fuzz.sh, keeps both checks on the
+# readers). Any sanitizer report stops the program, so it fails its test. Left out: the tests
+# labelled `package` and `install`, which build and install separate, unsanitized copies (they
+# check packaging, not memory, and run in the normal suite). -O1 with line tables only (-g1)
+# keeps the stacks readable and the run within CI's time.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 build_dir=${1:-build-sanitized}

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Packaging test: install sdot to a scratch prefix, then build and run a consumer with
-# find_package(sdot), and another with add_subdirectory (unoptimized: it compiles sdot's sources
-# again, in less than half the time of Release, and the consumer solves a 200-site problem).
+# find_package(sdot), and another with add_subdirectory (at -O0: it compiles sdot's sources again,
+# faster than in Release, and the consumer only solves a 200-site problem).
 set -euo pipefail
 source_dir=$1
 build_dir=$2
