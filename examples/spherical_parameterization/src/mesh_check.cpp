@@ -2,6 +2,8 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <future>
+#include <iterator>
 #include <numeric>
 #include <tuple>
 
@@ -12,7 +14,12 @@ namespace {
 
 struct UnionFind {
   std::vector<int> parent;
-  explicit UnionFind(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
+  explicit UnionFind(std::size_t n) { reset(n); }
+  /// n singletons again (keeps the allocation).
+  void reset(std::size_t n) {
+    parent.resize(n);
+    std::iota(parent.begin(), parent.end(), 0);
+  }
   int find(int x) {
     while (parent[static_cast<std::size_t>(x)] != x) {
       parent[static_cast<std::size_t>(x)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
@@ -40,6 +47,78 @@ double face_angle(const Vec3& p, const Vec3& q, const Vec3& r) {
   const Vec3 u = q - p, w = r - p;
   const double c = u.dot(w) / std::max(u.norm() * w.norm(), 1e-300);
   return std::acos(std::clamp(c, -1.0, 1.0));
+}
+
+/// The defects of faces that repeat another face's vertices and of vertices at another vertex's
+/// position (searched only with `finite_coordinates`), in that order.
+std::vector<Defect> duplicate_defects(const Mesh& mesh, bool finite_coordinates) {
+  std::vector<Defect> defects;
+  const std::size_t nv = mesh.vertices.size(), nf = mesh.faces.size();
+  {  // the same triangle twice, in any order or orientation
+    std::vector<std::pair<Face, std::size_t>> sorted(nf);
+    for (std::size_t index = 0; index < nf; ++index) {
+      Face f = mesh.faces[index];
+      std::sort(f.begin(), f.end());
+      sorted[index] = {f, index};
+    }
+    std::sort(sorted.begin(), sorted.end());
+    std::size_t duplicates = 0;
+    std::pair<std::size_t, std::size_t> first_pair;
+    for (std::size_t k = 1; k < nf; ++k)
+      if (sorted[k].first == sorted[k - 1].first && duplicates++ == 0)
+        first_pair = std::minmax(sorted[k].second, sorted[k - 1].second);
+    if (duplicates > 0)
+      defects.push_back({"duplicate faces", duplicates, true,
+                         plural(duplicates, "face repeats", "faces repeat") + " another face's vertices (first: face " +
+                             std::to_string(first_pair.second) + " = face " + std::to_string(first_pair.first) + ")"});
+  }
+  {  // distinct vertices at one position: harmless unless they split the surface (then it has boundary edges)
+    std::vector<std::size_t> order(nv);
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    auto less = [&](std::size_t a, std::size_t b) {
+      const Vec3 &p = mesh.vertices[a], &q = mesh.vertices[b];
+      return std::tie(p.x(), p.y(), p.z(), a) < std::tie(q.x(), q.y(), q.z(), b);
+    };
+    if (finite_coordinates) {
+      std::sort(order.begin(), order.end(), less);
+      std::size_t duplicates = 0;
+      std::pair<std::size_t, std::size_t> first_pair;
+      for (std::size_t k = 1; k < nv; ++k)
+        if (mesh.vertices[order[k]] == mesh.vertices[order[k - 1]] && duplicates++ == 0)
+          first_pair = {order[k - 1], order[k]};
+      if (duplicates > 0)
+        defects.push_back({"duplicate vertices", duplicates, false,
+                           plural(duplicates, "vertex has", "vertices have") +
+                               " the position of another vertex (first: vertex " + std::to_string(first_pair.second) +
+                               " at vertex " + std::to_string(first_pair.first) + ")"});
+    }
+  }
+  return defects;
+}
+
+struct GeometryStatistics {
+  std::size_t zero_area_faces = 0;
+  double volume = 0, min_angle = M_PI, area_ratio = 0;
+};
+
+/// Zero-area faces, signed volume, smallest angle and area ratio of a mesh of finite coordinates.
+GeometryStatistics geometry_statistics(const Mesh& mesh) {
+  GeometryStatistics g;
+  const auto areas = face_areas(mesh);
+  const double amax = *std::max_element(areas.begin(), areas.end());
+  double amin = amax;
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+    const auto& t = mesh.faces[f];
+    const Vec3& p0 = mesh.vertices[static_cast<std::size_t>(t[0])];
+    const Vec3& p1 = mesh.vertices[static_cast<std::size_t>(t[1])];
+    const Vec3& p2 = mesh.vertices[static_cast<std::size_t>(t[2])];
+    if (areas[f] <= 1e-14 * std::max(amax, 1e-300)) ++g.zero_area_faces;
+    amin = std::min(amin, areas[f]);
+    g.volume += p0.dot(p1.cross(p2)) / 6.0;
+    g.min_angle = std::min({g.min_angle, face_angle(p0, p1, p2), face_angle(p1, p2, p0), face_angle(p2, p0, p1)});
+  }
+  g.area_ratio = amax / std::max(amin, 1e-300);
+  return g;
 }
 
 }  // namespace
@@ -139,44 +218,13 @@ Validation validate(const Mesh& mesh, const ReadInfo& info) {
     add("degenerate faces", repeated, true,
         plural(repeated, "face uses", "faces use") + " the same vertex twice (degenerate connectivity; first: face " +
             std::to_string(first_repeated) + ")");
-  {  // the same triangle twice, in any order or orientation
-    std::vector<std::pair<Face, std::size_t>> sorted(nf);
-    for (std::size_t index = 0; index < nf; ++index) {
-      Face f = mesh.faces[index];
-      std::sort(f.begin(), f.end());
-      sorted[index] = {f, index};
-    }
-    std::sort(sorted.begin(), sorted.end());
-    std::size_t duplicates = 0;
-    std::pair<std::size_t, std::size_t> first_pair;
-    for (std::size_t k = 1; k < nf; ++k)
-      if (sorted[k].first == sorted[k - 1].first && duplicates++ == 0)
-        first_pair = std::minmax(sorted[k].second, sorted[k - 1].second);
-    if (duplicates > 0)
-      add("duplicate faces", duplicates, true,
-          plural(duplicates, "face repeats", "faces repeat") + " another face's vertices (first: face " +
-              std::to_string(first_pair.second) + " = face " + std::to_string(first_pair.first) + ")");
-  }
-  {  // distinct vertices at one position: harmless unless they split the surface (then it has boundary edges)
-    std::vector<std::size_t> order(nv);
-    std::iota(order.begin(), order.end(), std::size_t{0});
-    auto less = [&](std::size_t a, std::size_t b) {
-      const Vec3 &p = mesh.vertices[a], &q = mesh.vertices[b];
-      return std::tie(p.x(), p.y(), p.z(), a) < std::tie(q.x(), q.y(), q.z(), b);
-    };
-    if (nan == 0) {
-      std::sort(order.begin(), order.end(), less);
-      std::size_t duplicates = 0;
-      std::pair<std::size_t, std::size_t> first_pair;
-      for (std::size_t k = 1; k < nv; ++k)
-        if (mesh.vertices[order[k]] == mesh.vertices[order[k - 1]] && duplicates++ == 0)
-          first_pair = {order[k - 1], order[k]};
-      if (duplicates > 0)
-        add("duplicate vertices", duplicates, false,
-            plural(duplicates, "vertex has", "vertices have") + " the position of another vertex (first: vertex " +
-                std::to_string(first_pair.second) + " at vertex " + std::to_string(first_pair.first) + ")");
-    }
-  }
+  // The searches for duplicates and the geometry statistics read the mesh only: they run on threads
+  // of their own while this one checks the edges, the vertex fans and the components
+  // (spiky_120k: 0.17 s -> 0.09 s).
+  auto duplicates = std::async(std::launch::async, [&mesh, nan] { return duplicate_defects(mesh, nan == 0); });
+  std::future<GeometryStatistics> geometry;
+  if (nan == 0) geometry = std::async(std::launch::async, [&mesh] { return geometry_statistics(mesh); });
+  const auto duplicates_at = static_cast<std::ptrdiff_t>(r.defects.size());  // their place in the list
   r.unreferenced = static_cast<std::size_t>(std::count(used.begin(), used.end(), 0));
   r.vertices = nv - r.unreferenced;
   if (r.unreferenced > 0)
@@ -186,27 +234,29 @@ Validation validate(const Mesh& mesh, const ReadInfo& info) {
 
   // Edges: undirected multiplicity and directed multiplicity, from sorted half-edges (a sort is
   // several times faster than hash maps here: igea_134k's validation took 0.2 s with them).
-  std::vector<std::pair<std::uint64_t, bool>> half_edges;  // (undirected key, a > b)
+  // Each half-edge is its undirected key shifted left by one, with a > b in the lowest bit (the
+  // indices are below 2^31): plain integers sort faster than (key, direction) pairs.
+  std::vector<std::uint64_t> half_edges;
   half_edges.reserve(3 * nf);
   for (const auto& f : mesh.faces)
     for (int k = 0; k < 3; ++k) {
       const int a = f[static_cast<std::size_t>(k)], b = f[static_cast<std::size_t>((k + 1) % 3)];
       if (a == b) continue;
-      half_edges.emplace_back(edge_key(std::min(a, b), std::max(a, b)), a > b);
+      half_edges.push_back(edge_key(std::min(a, b), std::max(a, b)) << 1 | static_cast<std::uint64_t>(a > b));
     }
   std::sort(half_edges.begin(), half_edges.end());
   std::size_t boundary = 0, nonmanifold_edges = 0, misoriented = 0;
   std::uint64_t first_boundary = 0, first_nonmanifold = 0, first_misoriented = 0;
   r.edges = 0;
   for (std::size_t begin = 0, end = 0; begin < half_edges.size(); begin = end) {
-    while (end < half_edges.size() && half_edges[end].first == half_edges[begin].first) ++end;
+    const std::uint64_t key = half_edges[begin] >> 1;
+    while (end < half_edges.size() && half_edges[end] >> 1 == key) ++end;
     ++r.edges;
     const std::size_t count = end - begin;
-    const std::uint64_t key = half_edges[begin].first;
     if (count == 1 && boundary++ == 0) first_boundary = key;
     if (count > 2 && nonmanifold_edges++ == 0) first_nonmanifold = key;
     // sorted, so a manifold edge traversed once in each direction is (false, true)
-    if (count == 2 && half_edges[begin].second == half_edges[begin + 1].second && misoriented++ == 0)
+    if (count == 2 && (half_edges[begin] & 1) == (half_edges[begin + 1] & 1) && misoriented++ == 0)
       first_misoriented = key;
   }
   if (boundary > 0)
@@ -237,26 +287,33 @@ Validation validate(const Mesh& mesh, const ReadInfo& info) {
       if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) continue;
       for (int i : t) incident[static_cast<std::size_t>(fill[static_cast<std::size_t>(i)]++)] = static_cast<int>(f);
     }
-    std::size_t bad = 0, first_bad = 0;
-    std::vector<std::pair<int, int>> others;
-    for (std::size_t v = 0; v < nv; ++v) {
-      const int s = offsets[v], e = offsets[v + 1];
-      if (e - s <= 1) continue;
-      // union faces sharing an edge (v, x): sort (x, local face) pairs.
-      others.clear();
-      for (int k = s; k < e; ++k) {
-        const auto& t = mesh.faces[static_cast<std::size_t>(incident[static_cast<std::size_t>(k)])];
-        for (int x : t)
-          if (x != static_cast<int>(v)) others.emplace_back(x, k - s);
+    // vertex by vertex in parallel (2.1 M vertices: 0.5 s serially), the first one found the smallest
+    std::size_t bad = 0, first_bad = nv;
+#pragma omp parallel reduction(+ : bad) reduction(min : first_bad)
+    {
+      std::vector<std::pair<int, int>> others;
+      UnionFind uf(0);
+#pragma omp for schedule(dynamic, 4096)
+      for (std::ptrdiff_t vertex = 0; vertex < static_cast<std::ptrdiff_t>(nv); ++vertex) {
+        const auto v = static_cast<std::size_t>(vertex);
+        const int s = offsets[v], e = offsets[v + 1];
+        if (e - s <= 1) continue;
+        // union faces sharing an edge (v, x): sort (x, local face) pairs.
+        others.clear();
+        for (int k = s; k < e; ++k) {
+          const auto& t = mesh.faces[static_cast<std::size_t>(incident[static_cast<std::size_t>(k)])];
+          for (int x : t)
+            if (x != static_cast<int>(v)) others.emplace_back(x, k - s);
+        }
+        std::sort(others.begin(), others.end());
+        uf.reset(static_cast<std::size_t>(e - s));
+        for (std::size_t k = 1; k < others.size(); ++k)
+          if (others[k].first == others[k - 1].first) uf.unite(others[k].second, others[k - 1].second);
+        int roots = 0;
+        for (int k = 0; k < e - s; ++k)
+          if (uf.find(k) == k) ++roots;
+        if (roots > 1) ++bad, first_bad = std::min(first_bad, v);
       }
-      std::sort(others.begin(), others.end());
-      UnionFind uf(static_cast<std::size_t>(e - s));
-      for (std::size_t k = 1; k < others.size(); ++k)
-        if (others[k].first == others[k - 1].first) uf.unite(others[k].second, others[k - 1].second);
-      int roots = 0;
-      for (int k = 0; k < e - s; ++k)
-        if (uf.find(k) == k) ++roots;
-      if (roots > 1 && bad++ == 0) first_bad = v;
     }
     if (bad > 0)
       add("non-manifold vertices", bad, true,
@@ -284,6 +341,12 @@ Validation validate(const Mesh& mesh, const ReadInfo& info) {
               " are in different ones)");
   }
 
+  {
+    auto found = duplicates.get();
+    r.defects.insert(r.defects.begin() + duplicates_at, std::make_move_iterator(found.begin()),
+                     std::make_move_iterator(found.end()));
+  }
+
   r.euler_characteristic = static_cast<int>(r.vertices) - static_cast<int>(r.edges) + static_cast<int>(nf);
   if (r.euler_characteristic != 2) {
     std::string genus;
@@ -297,30 +360,16 @@ Validation validate(const Mesh& mesh, const ReadInfo& info) {
   }
 
   // Geometry: zero-area faces, signed volume, shape statistics.
-  if (nan == 0) {
-    const auto areas = face_areas(mesh);
-    const double amax = *std::max_element(areas.begin(), areas.end());
-    double amin = amax;
-    std::size_t zero = 0;
-    double volume = 0, min_angle = M_PI;
-    for (std::size_t f = 0; f < nf; ++f) {
-      const auto& t = mesh.faces[f];
-      const Vec3& p0 = mesh.vertices[static_cast<std::size_t>(t[0])];
-      const Vec3& p1 = mesh.vertices[static_cast<std::size_t>(t[1])];
-      const Vec3& p2 = mesh.vertices[static_cast<std::size_t>(t[2])];
-      if (areas[f] <= 1e-14 * std::max(amax, 1e-300)) ++zero;
-      amin = std::min(amin, areas[f]);
-      volume += p0.dot(p1.cross(p2)) / 6.0;
-      min_angle = std::min({min_angle, face_angle(p0, p1, p2), face_angle(p1, p2, p0), face_angle(p2, p0, p1)});
-    }
-    r.signed_volume = volume;
-    r.min_angle_deg = min_angle * 180 / M_PI;
-    r.area_ratio = amax / std::max(amin, 1e-300);
-    if (zero > 0)
-      add("zero-area faces", zero, false,
-          plural(zero, "zero-area face", "zero-area faces") +
+  if (geometry.valid()) {
+    const GeometryStatistics g = geometry.get();
+    r.signed_volume = g.volume;
+    r.min_angle_deg = g.min_angle * 180 / M_PI;
+    r.area_ratio = g.area_ratio;
+    if (g.zero_area_faces > 0)
+      add("zero-area faces", g.zero_area_faces, false,
+          plural(g.zero_area_faces, "zero-area face", "zero-area faces") +
               " (kept; their target area is floored and their area distortion is not finite)");
-    if (volume < 0 && misoriented == 0) {
+    if (g.volume < 0 && misoriented == 0) {
       r.inward = true;
       add("inward orientation", 0, false,
           "the faces are oriented inward (negative signed volume); accepted: the output keeps the input "

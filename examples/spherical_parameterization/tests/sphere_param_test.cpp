@@ -292,6 +292,50 @@ TEST(Validation, NonManifoldVertexAndComponents) {
   EXPECT_NE(c->message.find("2 connected components"), std::string::npos);
 }
 
+TEST(Validation, DefectsOfALargeMeshKeepTheirOrderAndFirstInstances) {
+  // Large enough for the checks' parallel parts (other threads, several chunks of vertices): two
+  // icospheres of 40,962 vertices, the second glued onto the first at vertices 100 and 30,000
+  // (its own two become unreferenced), a face of the first repeated backwards, and a vertex of
+  // the second moved onto another one.
+  const Mesh a = test::icosphere(6);
+  const int offset = static_cast<int>(a.vertices.size());
+  Mesh m = a;
+  for (const auto& v : a.vertices) m.vertices.push_back(v + Vec3(3, 0, 0));
+  for (auto f : a.faces) {
+    for (int& i : f) i = i == 100 ? 100 : (i == 30000 ? 30000 : i + offset);
+    m.faces.push_back(f);
+  }
+  const Face first = a.faces[7];
+  m.faces.push_back({first[0], first[2], first[1]});
+  const int moved = offset + 5000, onto = offset + 6000;
+  m.vertices[static_cast<std::size_t>(moved)] = m.vertices[static_cast<std::size_t>(onto)];
+  const Validation v = validate(m);
+  EXPECT_FALSE(v.ok());
+  // in the order validate() checks them (the backwards face makes its edges non-manifold, not
+  // inconsistently oriented)
+  std::vector<std::string> names;
+  for (const auto& d : v.defects) names.push_back(d.name);
+  const std::vector<std::string> expected = {"duplicate faces",    "duplicate vertices",    "unreferenced vertices",
+                                             "non-manifold edges", "non-manifold vertices", "Euler characteristic"};
+  EXPECT_EQ(names, expected);
+  const Defect* faces = find_defect(v, "duplicate faces");
+  ASSERT_NE(faces, nullptr);
+  EXPECT_EQ(faces->count, 1u);
+  EXPECT_NE(faces->message.find("first: face " + std::to_string(m.faces.size() - 1) + " = face 7)"), std::string::npos)
+      << faces->message;
+  const Defect* vertices = find_defect(v, "duplicate vertices");
+  ASSERT_NE(vertices, nullptr);
+  EXPECT_EQ(vertices->count, 1u);
+  const Defect* fans = find_defect(v, "non-manifold vertices");
+  ASSERT_NE(fans, nullptr);
+  EXPECT_EQ(fans->count, 2u);
+  EXPECT_NE(fans->message.find("first: vertex 100)"), std::string::npos) << fans->message;
+  const Defect* unreferenced = find_defect(v, "unreferenced vertices");
+  ASSERT_NE(unreferenced, nullptr);
+  EXPECT_EQ(unreferenced->count, 2u);
+  EXPECT_EQ(v.components, 1);
+}
+
 TEST(Validation, EulerCharacteristicReportsGenus) {
   const Validation v = validate(torus(12, 8));
   EXPECT_FALSE(v.ok());
