@@ -13,6 +13,9 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <numeric>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -473,6 +476,35 @@ TEST(Stages, TutteMapIsFlipFreeAndBalanced) {
   Vec3 c = Vec3::Zero();
   for (std::size_t i = 0; i < s.size(); ++i) c += masses[i] * s[i];
   EXPECT_LT(c.norm(), 1e-6);
+}
+
+TEST(Stages, MobiusBalanceIsTheSameOnAnyThreadCount) {
+  // 40,962 points pushed towards one side: the balancing moves them in parallel, and must give
+  // the same bits as on one thread, with the weighted mean at the origin.
+  const Mesh m = test::icosphere(6);
+  std::vector<Vec3> pushed = m.vertices;
+  for (auto& x : pushed) x = (x + Vec3(0.6, 0.2, 0.1)).normalized();
+  std::vector<double> weights(pushed.size());
+  for (std::size_t i = 0; i < weights.size(); ++i) weights[i] = 1.0 + static_cast<double>(i % 7);
+  std::vector<Vec3> one = pushed, many = pushed;
+#ifdef _OPENMP
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+#endif
+  const int iterations = mobius_balance(one, weights);
+#ifdef _OPENMP
+  omp_set_num_threads(std::max(threads, 2));
+#endif
+  EXPECT_EQ(mobius_balance(many, weights), iterations);
+#ifdef _OPENMP
+  omp_set_num_threads(threads);
+#endif
+  EXPECT_GT(iterations, 3);
+  EXPECT_TRUE(one == many);
+  Vec3 c = Vec3::Zero();
+  double total = 0;
+  for (std::size_t i = 0; i < many.size(); ++i) c += weights[i] * many[i], total += weights[i];
+  EXPECT_LT(c.norm() / total, 1e-8);
 }
 
 TEST(Stages, UntangleRepairsPerturbedMap) {
