@@ -841,7 +841,11 @@ namespace {
 class FlipSurface {
  public:
   FlipSurface(std::span<const Vec3> points, HullTriangulation& start)
-      : points_(points), tri_(start.triangles), opp_(start.opposite), alive_(tri_.size(), 1) {}
+      : points_(points),
+        tri_(start.triangles),
+        opp_(start.opposite),
+        alive_(tri_.size(), 1),
+        touched_(tri_.size(), 0) {}
 
   [[nodiscard]] const Vec3& point(int v) const { return points_[static_cast<std::size_t>(v)]; }
   [[nodiscard]] int vertex(int h) const { return tri_[static_cast<std::size_t>(h / 3)][h % 3]; }
@@ -859,6 +863,11 @@ class FlipSurface {
   /// Half-edge h = a→b of (a, b, c) is reflex when the apex d across it lies above (a, b, c).
   [[nodiscard]] bool reflex(int h) const { return above(vertex(h), vertex(next(h)), vertex(prev(h)), apex(twin(h))); }
   [[nodiscard]] int apex(int h) const { return vertex(prev(h)); }
+  /// Neither triangle of the edge of h has changed since the surface was made: its reflex test
+  /// gives what it gave then (it reads those two triangles and nothing else that changes).
+  [[nodiscard]] bool untouched(int h) const {
+    return touched_[static_cast<std::size_t>(h / 3)] == 0 && touched_[static_cast<std::size_t>(twin(h) / 3)] == 0;
+  }
 
   /// Degree of the vertex that h leaves, counted up to `cap`.
   [[nodiscard]] int degree(int h, int cap) const {
@@ -967,11 +976,15 @@ class FlipSurface {
     tri_.resize(static_cast<std::size_t>(count));
     opp_ = std::move(opposite);
     alive_.assign(tri_.size(), 1);
+    touched_.assign(tri_.size(), 1);  // the slots are renumbered: no earlier test applies
     free_.clear();
   }
 
  private:
-  void set(int t, std::array<int, 3> corners) { tri_[static_cast<std::size_t>(t)] = corners; }
+  void set(int t, std::array<int, 3> corners) {
+    tri_[static_cast<std::size_t>(t)] = corners;
+    touched_[static_cast<std::size_t>(t)] = 1;
+  }
   void link(int h, int g) { opp_[static_cast<std::size_t>(h)] = g, opp_[static_cast<std::size_t>(g)] = h; }
   void kill(int t) {
     alive_[static_cast<std::size_t>(t)] = 0;
@@ -987,6 +1000,7 @@ class FlipSurface {
     tri_.push_back({});
     opp_.resize(opp_.size() + 3, -1);
     alive_.push_back(1);
+    touched_.push_back(1);
     return static_cast<int>(tri_.size()) - 1;
   }
 
@@ -994,6 +1008,7 @@ class FlipSurface {
   std::vector<std::array<int, 3>>& tri_;
   std::vector<int>& opp_;
   std::vector<char> alive_;
+  std::vector<char> touched_;  // per triangle slot: set (or made) since the surface was made
   std::vector<int> free_;
 };
 
@@ -1048,8 +1063,14 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
       on_surface[static_cast<std::size_t>(v)] = 1;
     }
   FlipSurface surface(points, start);
-  for (const auto& t : start.triangles)
-    if (!surface.faces_out(t[0], t[1], t[2])) return std::nullopt;
+  bool facing_in = false;
+  const auto start_triangles = static_cast<std::ptrdiff_t>(start.triangles.size());
+#pragma omp parallel for schedule(static, 4096) reduction(|| : facing_in)
+  for (std::ptrdiff_t k = 0; k < start_triangles; ++k) {
+    const auto& t = start.triangles[static_cast<std::size_t>(k)];
+    if (!surface.faces_out(t[0], t[1], t[2])) facing_in = true;
+  }
+  if (facing_in) return std::nullopt;
 
   // Every operation below only adds volume (a reflex edge's flip, removing a vertex below its
   // neighbours' triangle, splitting a triangle at a point above it), so the surface grows to the
@@ -1059,7 +1080,6 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
   const std::size_t max_operations = 16 * std::max(start.triangles.size(), 2 * n) + 1024;
   std::size_t operations = 0;
   std::vector<int> stack;
-  stack.reserve(start.opposite.size());
   bool stopped = false;  // at a point inside (with `stop_at_inside`)
   // The surface as it is, still star-shaped and facing out everywhere: a start for the next call.
   auto stopped_hull = [&]() {
@@ -1070,6 +1090,14 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
     hull.surface = std::move(start);
     return hull;
   };
+  // The start's edges are tested at once, in parallel: after a Newton step most of them are still
+  // convex. Per half-edge: 0 when it is not the one of its edge that the loop below visits, 1 for a
+  // convex edge, 2 for a reflex one. Only the edges that operations changed are tested again.
+  const int start_half_edges = surface.half_edges();
+  std::vector<char> start_edge(static_cast<std::size_t>(start_half_edges), 0);
+#pragma omp parallel for schedule(static, 4096)
+  for (int h = 0; h < start_half_edges; ++h)
+    if (h < surface.twin(h)) start_edge[static_cast<std::size_t>(h)] = surface.reflex(h) ? 2 : 1;
   auto settle = [&]() {
     while (!stack.empty()) {
       const int h = stack.back();
@@ -1099,10 +1127,16 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
     }
     return true;
   };
-  for (int h = 0; h < surface.half_edges(); ++h)
-    if (h < surface.twin(h)) stack.push_back(h);
-  if (!settle()) return std::nullopt;
-  if (stopped) return stopped_hull();
+  // Each edge of the start once, from the last half-edge down, its consequences settled before the
+  // next: as a stack filled with them all would take them. An edge still convex and unchanged is
+  // skipped, as that stack would skip it.
+  for (int h = start_half_edges - 1; h >= 0; --h) {
+    const char edge = start_edge[static_cast<std::size_t>(h)];
+    if (edge == 0 || (edge == 1 && (operations == 0 || surface.untouched(h)))) continue;
+    stack.push_back(h);
+    if (!settle()) return std::nullopt;
+    if (stopped) return stopped_hull();
+  }
 
   // Points off the start (empty cells of the previous diagram): inserted where they lie above the
   // surface, which is then settled again.
@@ -1129,11 +1163,14 @@ std::optional<Hull3> convex_hull_3d_by_flips(std::span<const Vec3> points, HullT
 
   // The final check, every live edge convex, and the largest facet offset: in parallel (both
   // reductions are exact, so the result does not depend on the thread count).
+  // An unchanged edge of the start is tested once, as settle saw it; a changed one from both sides.
   const int half_edges = surface.half_edges();
   bool reflex_left = false;
 #pragma omp parallel for schedule(static, 4096) reduction(|| : reflex_left)
   for (int h = 0; h < half_edges; ++h)
-    if (surface.alive(h) && surface.reflex(h)) reflex_left = true;
+    if (surface.alive(h) && (surface.untouched(h) && h < start_half_edges ? start_edge[static_cast<std::size_t>(h)] == 2
+                                                                          : surface.reflex(h)))
+      reflex_left = true;
   if (reflex_left) return std::nullopt;
   surface.compact();
   Hull3 hull;

@@ -638,7 +638,10 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
   std::vector<Vec3> p(n);
   std::vector<double> h(n);
   const double offset = n > 0 ? height_offset(weights.maxCoeff()) : 0;
-  for (std::size_t i = 0; i < n; ++i) {
+  const auto site_count = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t k = 0; k < site_count; ++k) {
+    const auto i = static_cast<std::size_t>(k);
     p[i] = sites[i].normalized();
     h[i] = weights[static_cast<Eigen::Index>(i)] - offset;
   }
@@ -659,7 +662,9 @@ Diagram<Sphere::Point> Sphere::build_whole_sphere(std::span<const Point> sites, 
   const bool use_hull = builder_ != Builder::clipping;
   if (use_hull) {
     std::vector<Vec3> q(n);
-    for (std::size_t i = 0; i < n; ++i) q[i] = std::exp(h[i]) * p[i];
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t k = 0; k < site_count; ++k)
+      q[static_cast<std::size_t>(k)] = std::exp(h[static_cast<std::size_t>(k)]) * p[static_cast<std::size_t>(k)];
     Hull3 hull;
     HullTriangulation start;  // taken, not copied: a concurrent build then finds none and starts afresh
     {
