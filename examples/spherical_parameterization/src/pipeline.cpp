@@ -1,5 +1,6 @@
 // The parameterization pipeline. The OT stage uses the library's sphere geometry and solver.
 #include "pipeline.hpp"
+#include "point_grid.hpp"
 #include "sub_resolution.hpp"
 
 #include <Eigen/Cholesky>
@@ -116,36 +117,6 @@ OtOutcome solve_ot(const std::vector<Vec3>& sites, const std::vector<double>& ma
   return out;
 }
 
-/// Points hashed into cubes of side `cell`: the 27 cubes around a point hold every point within
-/// `cell` of it (and maybe others, whose cube's hash collides).
-class PointGrid {
- public:
-  explicit PointGrid(double cell) : cell_(cell) {}
-  void insert(const Vec3& p, int index) { cubes_[key(p, 0, 0, 0)].push_back(index); }
-  /// body(index) for the points of the 27 cubes around p, in a fixed order
-  template <class Body>
-  void for_each_near(const Vec3& p, Body&& body) const {
-    for (long long dx = -1; dx <= 1; ++dx)
-      for (long long dy = -1; dy <= 1; ++dy)
-        for (long long dz = -1; dz <= 1; ++dz) {
-          const auto it = cubes_.find(key(p, dx, dy, dz));
-          if (it == cubes_.end()) continue;
-          for (int index : it->second) body(index);
-        }
-  }
-
- private:
-  std::uint64_t key(const Vec3& p, long long dx, long long dy, long long dz) const {
-    const auto x = static_cast<long long>(std::floor(p.x() / cell_)) + dx;
-    const auto y = static_cast<long long>(std::floor(p.y() / cell_)) + dy;
-    const auto z = static_cast<long long>(std::floor(p.z() / cell_)) + dz;
-    return static_cast<std::uint64_t>(x * 73856093LL) ^ static_cast<std::uint64_t>(y * 19349663LL) ^
-           static_cast<std::uint64_t>(z * 83492791LL);
-  }
-  double cell_;
-  std::unordered_map<std::uint64_t, std::vector<int>> cubes_;
-};
-
 /// δ-separated representatives of the points `s` and the clusters around them.
 struct Clusters {
   std::vector<Vec3> sites;     ///< the representatives' positions
@@ -170,13 +141,15 @@ Clusters cluster_around_representatives(const std::vector<Vec3>& s, const std::v
   };
   for (int v : order)
     if (nearest(s[u(v)]) < 0) grid.insert(s[u(v)], static_cast<int>(c.sites.size())), c.sites.push_back(s[u(v)]);
+  // Each point's representative in parallel; the masses summed in point order (the same bits on
+  // any thread count).
   c.owner.resize(s.size());
+  const auto count = static_cast<std::ptrdiff_t>(s.size());
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t v = 0; v < count; ++v)
+    c.owner[u(v)] = std::max(nearest(s[u(v)]), 0);  // always ≥ 0: every point has a representative within δ
   c.masses.assign(c.sites.size(), 0.0);
-  for (std::size_t v = 0; v < s.size(); ++v) {
-    const int r = std::max(nearest(s[v]), 0);  // always ≥ 0: every point has a representative within δ
-    c.owner[v] = r;
-    c.masses[u(r)] += masses[v];
-  }
+  for (std::size_t v = 0; v < s.size(); ++v) c.masses[u(c.owner[v])] += masses[v];
   return c;
 }
 

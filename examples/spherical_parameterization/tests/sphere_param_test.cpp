@@ -23,6 +23,7 @@
 #include "mesh.hpp"
 #include "param.hpp"
 #include "pipeline.hpp"
+#include "point_grid.hpp"
 #include "report.hpp"
 #include "run.hpp"
 #include "sdot/linear_solver.hpp"
@@ -96,6 +97,33 @@ RunResult run(const Mesh& mesh, PipelineOptions options = {}) {
 }  // namespace
 
 // ----------------------------------------------------------------------------------- I/O
+TEST(PointGrid, VisitsEveryNearPointExactlyOnceWithTheArrayAndTheHashMap) {
+  // Points on the unit sphere and a few off it (outside the array's box); cubes large enough for
+  // the array and small enough for the hash map. Each query must visit every point within `cell`
+  // and no point twice.
+  std::mt19937 rng(4);
+  std::normal_distribution<double> gauss;
+  std::vector<Vec3> points(3000);
+  for (auto& p : points) p = Vec3(gauss(rng), gauss(rng), gauss(rng)).normalized();
+  points.push_back(Vec3(2.5, 0, 0)), points.push_back(Vec3(2.5, 0.01, 0)), points.push_back(Vec3(0, -7, 0));
+  for (const double cell : {0.3, 0.08, 2e-3}) {
+    PointGrid grid(cell);
+    for (std::size_t i = 0; i < points.size(); ++i) grid.insert(points[i], static_cast<int>(i));
+    for (std::size_t q = 0; q < points.size(); q += 7) {
+      std::vector<int> seen;
+      grid.for_each_near(points[q], [&](int i) { seen.push_back(i); });
+      std::sort(seen.begin(), seen.end());
+      ASSERT_EQ(std::adjacent_find(seen.begin(), seen.end()), seen.end())
+          << "cell " << cell << ": a point visited twice";
+      for (std::size_t i = 0; i < points.size(); ++i) {
+        if ((points[i] - points[q]).norm() >= cell) continue;
+        ASSERT_TRUE(std::binary_search(seen.begin(), seen.end(), static_cast<int>(i)))
+            << "cell " << cell << ": point " << i << " near point " << q << " not visited";
+      }
+    }
+  }
+}
+
 TEST(MeshIo, RoundTripEveryFormat) {
   Mesh m = test::bumpy_sphere(2, 5, 0.3, 3);
   for (const std::string name : {"a.off", "a.obj", "a.ply", "b.PLY"}) {
