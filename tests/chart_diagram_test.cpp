@@ -784,6 +784,14 @@ std::vector<sdot::Vec3> lifted_sphere_points(std::size_t n, double spread, unsig
   return q;
 }
 
+/// The points with each height moved by an amount uniform in [-change, change].
+std::vector<sdot::Vec3> heights_moved(std::vector<sdot::Vec3> points, double change, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> amount(-change, change);
+  for (auto& x : points) x *= std::exp(amount(rng));
+  return points;
+}
+
 std::size_t differing_edges(const sdot::Adjacency& a, const sdot::Adjacency& b, std::size_t n) {
   std::size_t differ = 0;
   for (std::size_t i = 0; i < n; ++i) {
@@ -800,10 +808,7 @@ TEST(HullByFlips, ReachesQhullsHullFromANearbyHull) {
   // non-empty: every point is a hull vertex before and after.
   const std::size_t n = 2000;
   const auto before = lifted_sphere_points(n, 2e-4, 1);
-  auto after = before;
-  std::mt19937 rng(2);
-  std::uniform_real_distribution<double> change(-2e-4, 2e-4);
-  for (auto& x : after) x *= std::exp(change(rng));  // heights move: the hull's edges change
+  const auto after = heights_moved(before, 2e-4, 2);  // heights move: the hull's edges change
   const sdot::Hull3 start = sdot::convex_hull_3d(before, true);
   const sdot::Hull3 reference = sdot::convex_hull_3d(after);
   ASSERT_FALSE(start.surface.triangles.empty());
@@ -900,10 +905,8 @@ TEST(HullByFlips, ALargeUpdateIsTheHullAndTheSameTriangulationOnAnyThreadCount) 
   // result is still Qhull's hull, triangle for triangle the same on 1 and 2 threads.
   const std::size_t n = 40000;
   const auto before = lifted_sphere_points(n, 1e-4, 8);
-  auto after = before;
-  std::mt19937 rng(9);
-  std::uniform_real_distribution<double> change(-1e-4, 1e-4);
-  for (auto& x : after) x *= std::exp(change(rng));
+  auto after = heights_moved(before, 1e-4, 9);
+  std::mt19937 rng(10);
   for (int k = 0; k < 200; ++k) after[rng() % n] *= 0.9995;  // pushed inside: removals
   const sdot::Hull3 start = sdot::convex_hull_3d(before, true);
   const sdot::Hull3 reference = sdot::convex_hull_3d(after);
