@@ -97,3 +97,17 @@ def test_bad_coarse_transport_is_a_value_error(bad):
     vertices, faces = bumpy_mesh(1)
     with pytest.raises(ValueError, match="coarse_transport"):
         sdot.sphere_parameterization(vertices, faces, coarse_transport=bad)
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), float("inf")])
+def test_bad_separation_delta_is_a_value_error(bad):
+    vertices, faces = bumpy_mesh(1)
+    with pytest.raises(ValueError, match="separation_delta"):
+        sdot.sphere_parameterization(vertices, faces, separation_delta=bad)
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf")])
+def test_bad_separation_threshold_is_a_value_error(bad):
+    vertices, faces = bumpy_mesh(1)
+    with pytest.raises(ValueError, match="separation_threshold"):
+        sdot.sphere_parameterization(vertices, faces, separation_threshold=bad)

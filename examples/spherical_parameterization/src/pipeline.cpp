@@ -576,6 +576,13 @@ PipelineResult parameterize(const Mesh& mesh, const PipelineOptions& options) {
   if (!(std::isfinite(options.coarse_transport_spacing) && options.coarse_transport_spacing >= 0))
     throw std::invalid_argument("coarse_transport_spacing: must be a finite number >= 0, got " +
                                 std::to_string(options.coarse_transport_spacing));
+  // the separation passes file sites into cubes of side separation_delta·√(4π/N)
+  if (!(std::isfinite(options.separation_delta) && options.separation_delta > 0))
+    throw std::invalid_argument("separation_delta: must be a finite number > 0, got " +
+                                std::to_string(options.separation_delta));
+  if (!(std::isfinite(options.min_spacing) && options.min_spacing >= 0))
+    throw std::invalid_argument("separation_threshold (min_spacing): must be a finite number >= 0, got " +
+                                std::to_string(options.min_spacing));
   auto t = Clock::now();
   const MeshReduction reduction = options.sub_resolution_area_ratio > 0
                                       ? remove_sub_resolution_vertices(mesh, options.sub_resolution_area_ratio)

@@ -1273,15 +1273,31 @@ TEST(Pipeline, CoarseTransportStartsTheOtNearerItsSolution) {
   PipelineOptions small_window = coarse;
   small_window.coarse_transport_up_to_vertices = m.vertices.size() - 1;
   EXPECT_FALSE(has_stage(run(m, small_window).pipeline));
-  PipelineOptions bad;
-  for (double spacing : {-1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
-    bad.coarse_transport_spacing = spacing;
+}
+
+TEST(Pipeline, RejectsInvalidSpacingOptionsNamingTheField) {
+  const Mesh m = test::bumpy_sphere(2, 5, 0.3, 3);
+  const auto expect_rejected = [&](const PipelineOptions& bad, const std::string& field) {
     EXPECT_THROW(
         try { parameterize(m, bad); } catch (const std::invalid_argument& e) {
-          EXPECT_NE(std::string(e.what()).find("coarse_transport_spacing"), std::string::npos) << e.what();
+          EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
           throw;
         },
         std::invalid_argument);
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  for (double value : {-1.0, nan, inf}) {
+    PipelineOptions bad;
+    bad.coarse_transport_spacing = value;
+    expect_rejected(bad, "coarse_transport_spacing");
+    bad = {};
+    bad.min_spacing = value;
+    expect_rejected(bad, "separation_threshold");
+  }
+  for (double value : {0.0, -1.0, nan, inf}) {  // the separation passes' cube size
+    PipelineOptions bad;
+    bad.separation_delta = value;
+    expect_rejected(bad, "separation_delta");
   }
 }
 
