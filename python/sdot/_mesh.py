@@ -80,6 +80,10 @@ def sphere_parameterization(
     coarse_transport : from 40,000 to 500,000 vertices, the sites move by the displacement of a
         coarse OT on representatives this many times sqrt(4π/n) apart before the OT, which saves
         some of its Newton steps (``--coarse-transport``); 0 disables it.
+    separation_threshold, separation_delta : the site-separation passes for crushed maps
+        (``--separation-threshold``, ``--separation-delta``): they run while the shortest edge of
+        the map is below separation_threshold·sqrt(4π/n) (≥ 0; 0 disables them), on
+        representatives separation_delta·sqrt(4π/n) apart (> 0).
     progress : print the stage lines on stderr, or a callable that receives each line.
 
     Returns
@@ -92,7 +96,8 @@ def sphere_parameterization(
     "flipped_faces" (faces left flipped) or "ot_not_converged" (no flipped face, but the OT solve
     stopped short of its tolerance, so the areas are not preserved; ``report["ot"]`` says why).
 
-    Raises ValueError naming the defects for a mesh that is not a closed genus-0 manifold.
+    Raises ValueError naming the defects for a mesh that is not a closed genus-0 manifold, and
+    naming the option for an option out of its range.
     """
     vertices = _float_array(vertices, "vertices", ndim=2, columns=(3,))
     faces = _int_array(faces, "faces")
