@@ -92,22 +92,16 @@ def test_bad_angle_weight_is_a_value_error(bad):
         sdot.sphere_parameterization(vertices, faces, angle_weight=bad)
 
 
-@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf")])
-def test_bad_coarse_transport_is_a_value_error(bad):
+_NAN, _INF = float("nan"), float("inf")
+
+
+@pytest.mark.parametrize(
+    "option, bad",
+    [("coarse_transport", value) for value in (-1.0, _NAN, _INF)]
+    + [("separation_delta", value) for value in (0.0, -1.0, _NAN, _INF)]
+    + [("separation_threshold", value) for value in (-1.0, _NAN, _INF)],
+)
+def test_bad_spacing_option_is_a_value_error_naming_it(option, bad):
     vertices, faces = bumpy_mesh(1)
-    with pytest.raises(ValueError, match="coarse_transport"):
-        sdot.sphere_parameterization(vertices, faces, coarse_transport=bad)
-
-
-@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), float("inf")])
-def test_bad_separation_delta_is_a_value_error(bad):
-    vertices, faces = bumpy_mesh(1)
-    with pytest.raises(ValueError, match="separation_delta"):
-        sdot.sphere_parameterization(vertices, faces, separation_delta=bad)
-
-
-@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf")])
-def test_bad_separation_threshold_is_a_value_error(bad):
-    vertices, faces = bumpy_mesh(1)
-    with pytest.raises(ValueError, match="separation_threshold"):
-        sdot.sphere_parameterization(vertices, faces, separation_threshold=bad)
+    with pytest.raises(ValueError, match=option):
+        sdot.sphere_parameterization(vertices, faces, **{option: bad})
