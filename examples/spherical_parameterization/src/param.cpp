@@ -1,5 +1,6 @@
 // Initial map, Möbius balancing, untangling, area optimization, subdivision.
 #include "param.hpp"
+#include "lane_math.hpp"
 #include "split_cholesky.hpp"
 
 #include <Eigen/Geometry>
@@ -1188,92 +1189,179 @@ struct LocalEval {
   bool valid = true;
 };
 
-/// Energy of the faces [first, last) around one vertex with that vertex at position x; the
-/// others at position(slot).
-/// Area term log²(A/T) with A the signed spherical area; MIPS term on the chordal triangle.
-/// Each pass runs over a block of faces before the next starts, the calls to log together: one
-/// face at a time, every face was a chain of dependent divisions and a call (around which all
-/// registers are saved), with little for the processor to overlap. The arithmetic and the order
-/// of the sums are those of one face at a time, so the results are the same bit for bit.
-template <class Position>
-LocalEval local_energy(const Corner* first, const Corner* last, const Position& position, const Vec3& x, double lambda,
-                       bool with_derivatives, double eps = 0) {
-  LocalEval e;
-  constexpr std::ptrdiff_t block = 8;
-  for (; first < last; first += block) {
-    const int n = static_cast<int>(std::min(block, last - first));
-    Vec3 pj[block], pk[block], jk[block];
-    double N[block], D[block], A[block], ratio[block], r[block];
-    for (int f = 0; f < n; ++f) {
-      pj[f] = position(first[f].j);
-      pk[f] = position(first[f].k);
-      jk[f] = pj[f].cross(pk[f]);
-      N[f] = x.dot(jk[f]);
-      D[f] = 1 + x.dot(pj[f]) + pj[f].dot(pk[f]) + pk[f].dot(x);
+/// The regularised area (A + root)/2, root = sqrt(A² + 4ε²T²), for `eps2_T2` = 4ε²T²: for A < 0
+/// as 4ε²T² / (2 (root − A)), the same number without the cancellation of A against root (an
+/// inverted face's A_eps is far below |A|, and (A + root)/2 kept only the last bits of it).
+inline double regularized_area(double A, double root, double eps2_T2) {
+  return A >= 0 ? 0.5 * (A + root) : eps2_T2 / (2 * (root - A));
+}
+
+/// The faces around one vertex as lanes (structure of arrays): the other two vertices'
+/// positions, gathered once per move and read by each of its tries, and the faces' constants.
+/// The lanes come in blocks of `block`; those past the last face repeat it (their values are
+/// computed, never summed), so that every loop over a block has a fixed length and vectorizes.
+class FanLanes {
+ public:
+  static constexpr std::size_t block = 8;
+  enum Field : std::size_t { pjx, pjy, pjz, pkx, pky, pkz, target, cot_i, cot_j, cot_k, field_count };
+
+  template <class Position>
+  void gather(const Corner* first, const Corner* last, const Position& position) {
+    count_ = static_cast<std::size_t>(last - first);
+    padded_ = (count_ + block - 1) / block * block;
+    if (data_.size() < field_count * padded_) data_.resize(field_count * padded_);
+    for (std::size_t f = 0; f < padded_; ++f) {
+      const Corner& c = first[std::min(f, count_ - 1)];
+      const Vec3 &pj = position(c.j), &pk = position(c.k);
+      const double values[field_count] = {pj.x(), pj.y(),   pj.z(),  pk.x(),  pk.y(),
+                                          pk.z(), c.target, c.cot_i, c.cot_j, c.cot_k};
+      for (std::size_t field = 0; field < field_count; ++field) data_[field * padded_ + f] = values[field];
     }
+  }
+  [[nodiscard]] std::size_t count() const { return count_; }
+  [[nodiscard]] std::size_t padded() const { return padded_; }
+  [[nodiscard]] const double* operator[](Field field) const { return data_.data() + field * padded_; }
+
+ private:
+  std::size_t count_ = 0, padded_ = 0;
+  std::vector<double> data_;
+};
+
+// The local energy's kernel in two builds on x86-64 with GCC, the default and one for AVX2 and FMA
+// (x86-64-v3), chosen when the program loads: the face loops run 4 lanes at a time there.
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define SPHPARAM_LANE_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define SPHPARAM_LANE_CLONES
+#endif
+
+/// Energy of the faces of `fan` around one vertex with that vertex at position x.
+/// Area term log²(A/T) with A the signed spherical area; MIPS term on the chordal triangle.
+/// Each quantity is computed for a whole block of faces before the next (loops without calls or
+/// branches, which the compiler vectorizes); the few lanes that need a call (atan2 for large or
+/// inverted triangles, std::log outside log_of_normal's range) are redone one by one after it.
+/// The sums run in face order.
+SPHPARAM_LANE_CLONES
+LocalEval local_energy(const FanLanes& fan, const Vec3& x, double lambda, bool with_derivatives, double eps) {
+  constexpr std::size_t block = FanLanes::block;
+  using F = FanLanes::Field;
+  const double *PJX = fan[F::pjx], *PJY = fan[F::pjy], *PJZ = fan[F::pjz];
+  const double *PKX = fan[F::pkx], *PKY = fan[F::pky], *PKZ = fan[F::pkz];
+  const double *TARGET = fan[F::target], *COT_I = fan[F::cot_i], *COT_J = fan[F::cot_j], *COT_K = fan[F::cot_k];
+  const double x0 = x.x(), x1 = x.y(), x2 = x.z(), eps2 = 4 * eps * eps;
+  LocalEval e;
+  double gxx = 0, gxy = 0, gxz = 0, gyy = 0, gyz = 0, gzz = 0;
+  for (std::size_t b = 0; b < fan.padded(); b += block) {
+    const std::size_t n = std::min(block, fan.count() - b);
+    const double *pjx = PJX + b, *pjy = PJY + b, *pjz = PJZ + b, *pkx = PKX + b, *pky = PKY + b, *pkz = PKZ + b;
+    const double* T = TARGET + b;
+    double jx[block], jy[block], jz[block], N[block], D[block], A[block], ratio[block], r[block];
+    double called[block];  // 1 where the series does not apply (a double: the loop vectorizes)
+    for (std::size_t f = 0; f < block; ++f) {
+      jx[f] = pjy[f] * pkz[f] - pjz[f] * pky[f];
+      jy[f] = pjz[f] * pkx[f] - pjx[f] * pkz[f];
+      jz[f] = pjx[f] * pky[f] - pjy[f] * pkx[f];
+      N[f] = x0 * jx[f] + x1 * jy[f] + x2 * jz[f];
+      D[f] = 1 + x0 * (pjx[f] + pkx[f]) + x1 * (pjy[f] + pky[f]) + x2 * (pjz[f] + pkz[f]) +
+             (pjx[f] * pkx[f] + pjy[f] * pky[f] + pjz[f] * pkz[f]);
+      // triangle_area_from_det's series where it applies; atan2 below for the other lanes
+      const double t = N[f] / D[f], t2 = t * t;
+      A[f] = 2 * t * (1 - t2 * (1.0 / 3 - t2 * (1.0 / 5 - t2 / 7)));
+      called[f] = (D[f] > 0) & (std::abs(N[f]) < 0.01 * D[f]) ? 0.0 : 1.0;
+    }
+    for (std::size_t f = 0; f < n; ++f)
+      if (called[f] != 0) A[f] = 2 * std::atan2(N[f], D[f]);
     if (eps > 0) {
       // Regularised (untangling) mode: A_eps = (A + sqrt(A² + 4ε²T²))/2 > 0 also for inverted
       // faces, so vertices may pass through inverted states (Garanzha et al.'s continuation).
-      double root[block], Ae[block];
-      for (int f = 0; f < n; ++f) {
-        const double T = first[f].target;
-        A[f] = triangle_area_from_det(N[f], D[f]);
-        root[f] = std::sqrt(A[f] * A[f] + 4 * eps * eps * T * T);
-        Ae[f] = 0.5 * (A[f] + root[f]);
-        ratio[f] = Ae[f] / T;
+      double root[block];
+      for (std::size_t f = 0; f < block; ++f) {
+        root[f] = std::sqrt(A[f] * A[f] + eps2 * T[f] * T[f]);
+        ratio[f] = regularized_area(A[f], root[f], eps2 * T[f] * T[f]) / T[f];
+        r[f] = log_of_normal(ratio[f]);
       }
-      for (int f = 0; f < n; ++f) r[f] = std::log(ratio[f]);
-      for (int f = 0; f < n; ++f) {
+      for (std::size_t f = 0; f < n; ++f)
+        if (!is_normal_positive(ratio[f])) r[f] = std::log(ratio[f]);
+      if (!with_derivatives) {
+        for (std::size_t f = 0; f < n; ++f) e.energy += r[f] * r[f];
+        continue;
+      }
+      // dA/dx = 2 (D jk − N (pj + pk)) / (N² + D²) and dA_eps/dA = (1 + A/root)/2 = A_eps/root,
+      // so dr = dA_eps/A_eps = dA/root: one division
+      double drx[block], dry[block], drz[block];
+      for (std::size_t f = 0; f < block; ++f) {
+        const double c = 2 / ((N[f] * N[f] + D[f] * D[f]) * root[f]);
+        drx[f] = c * (D[f] * jx[f] - N[f] * (pjx[f] + pkx[f]));
+        dry[f] = c * (D[f] * jy[f] - N[f] * (pjy[f] + pky[f]));
+        drz[f] = c * (D[f] * jz[f] - N[f] * (pjz[f] + pkz[f]));
+      }
+      for (std::size_t f = 0; f < n; ++f) {
         e.energy += r[f] * r[f];
-        if (!with_derivatives) continue;
-        // dA/dx = 2 (D jk − N (pj + pk)) / (N² + D²), dr = (1 + A/root)/2 · dA/Ae: one division
-        const Vec3 dr =
-            ((1 + A[f] / root[f]) / ((N[f] * N[f] + D[f] * D[f]) * Ae[f])) * (D[f] * jk[f] - N[f] * (pj[f] + pk[f]));
-        e.grad += 2 * r[f] * dr;
-        e.gn += 2 * dr * dr.transpose();
+        e.grad += 2 * r[f] * Vec3(drx[f], dry[f], drz[f]);
+        gxx += 2 * drx[f] * drx[f], gxy += 2 * drx[f] * dry[f], gxz += 2 * drx[f] * drz[f];
+        gyy += 2 * dry[f] * dry[f], gyz += 2 * dry[f] * drz[f], gzz += 2 * drz[f] * drz[f];
       }
       continue;
     }
-    Vec3 nrm[block];
-    double A2[block];
-    for (int f = 0; f < n; ++f) {
-      if (!(N[f] > 0)) {
-        e.valid = false;
-        return e;
-      }
-      A[f] = triangle_area_from_det(N[f], D[f]);
-      ratio[f] = A[f] / first[f].target;
-      // chordal triangle (x, pj, pk): twice its area
-      nrm[f] = (pj[f] - x).cross(pk[f] - x);
-      A2[f] = nrm[f].norm();
-      if (!(A2[f] > 0)) {
-        e.valid = false;
-        return e;
-      }
-    }
-    for (int f = 0; f < n; ++f) r[f] = std::log(ratio[f]);
-    for (int f = 0; f < n; ++f) {
-      // cot of mesh angles at corners i, j, k
-      const double ci = first[f].cot_i, cj = first[f].cot_j, ck = first[f].cot_k;
-      const Vec3 ej = pj[f] - x, ek = pk[f] - x;
+    const double *ci = COT_I + b, *cj = COT_J + b, *ck = COT_K + b;
+    // chordal triangle (x, pj, pk): ej = pj − x, ek = pk − x, twice its area |ej × ek|
+    double nx[block], ny[block], nz[block], A2[block], C[block], mips[block];
+    bool invalid = false;
+    for (std::size_t f = 0; f < block; ++f) {
+      const double ejx = pjx[f] - x0, ejy = pjy[f] - x1, ejz = pjz[f] - x2;
+      const double ekx = pkx[f] - x0, eky = pky[f] - x1, ekz = pkz[f] - x2;
+      nx[f] = ejy * ekz - ejz * eky, ny[f] = ejz * ekx - ejx * ekz, nz[f] = ejx * eky - ejy * ekx;
+      A2[f] = std::sqrt(nx[f] * nx[f] + ny[f] * ny[f] + nz[f] * nz[f]);
+      ratio[f] = A[f] / T[f];
+      r[f] = log_of_normal(ratio[f]);
       // Σ_e cot(opposite) l_e²: edge jk opposite i, edge (x,pk) opposite j, edge (x,pj) opposite k
-      const double C = ci * (pj[f] - pk[f]).squaredNorm() + cj * ek.squaredNorm() + ck * ej.squaredNorm();
-      const double mips = C / (2 * A2[f]) - 1;  // = (σ1/σ2 + σ2/σ1)/2 − 1 ≥ 0
-      e.energy += r[f] * r[f] + lambda * mips;
-      if (!with_derivatives) continue;
+      const double djkx = pjx[f] - pkx[f], djky = pjy[f] - pky[f], djkz = pjz[f] - pkz[f];
+      C[f] = ci[f] * (djkx * djkx + djky * djky + djkz * djkz) + cj[f] * (ekx * ekx + eky * eky + ekz * ekz) +
+             ck[f] * (ejx * ejx + ejy * ejy + ejz * ejz);
+      mips[f] = C[f] / (2 * A2[f]) - 1;  // = (σ1/σ2 + σ2/σ1)/2 − 1 ≥ 0
+    }
+    for (std::size_t f = 0; f < n; ++f) {
+      invalid = invalid || !(N[f] > 0) || !(A2[f] > 0);
+      if (!is_normal_positive(ratio[f])) r[f] = std::log(ratio[f]);
+    }
+    if (invalid) {
+      e.valid = false;
+      return e;
+    }
+    if (!with_derivatives) {
+      for (std::size_t f = 0; f < n; ++f) e.energy += r[f] * r[f] + lambda * mips[f];
+      continue;
+    }
+    double drx[block], dry[block], drz[block], dmx[block], dmy[block], dmz[block], curvature[block];
+    for (std::size_t f = 0; f < block; ++f) {
       // dr = dA/dx / A (dA/dx as above); one division for each vector, not one per coordinate
-      const Vec3 dr = (2 / ((N[f] * N[f] + D[f] * D[f]) * A[f])) * (D[f] * jk[f] - N[f] * (pj[f] + pk[f]));
-      e.grad += 2 * r[f] * dr;
-      e.gn += 2 * dr * dr.transpose();
-      const Vec3 dC = -2 * cj * ek - 2 * ck * ej;
-      const double inv_A2 = 1 / A2[f];
-      const Vec3 dA2 = inv_A2 * (pj[f] - pk[f]).cross(nrm[f]);
-      const Vec3 dm = (0.5 * inv_A2 * inv_A2) * (dC * A2[f] - C * dA2);
-      e.grad += lambda * dm;
+      const double c = 2 / ((N[f] * N[f] + D[f] * D[f]) * A[f]);
+      drx[f] = c * (D[f] * jx[f] - N[f] * (pjx[f] + pkx[f]));
+      dry[f] = c * (D[f] * jy[f] - N[f] * (pjy[f] + pky[f]));
+      drz[f] = c * (D[f] * jz[f] - N[f] * (pjz[f] + pkz[f]));
+      const double ejx = pjx[f] - x0, ejy = pjy[f] - x1, ejz = pjz[f] - x2;
+      const double ekx = pkx[f] - x0, eky = pky[f] - x1, ekz = pkz[f] - x2;
+      const double djkx = pjx[f] - pkx[f], djky = pjy[f] - pky[f], djkz = pjz[f] - pkz[f];
+      // dC = −2 cj ek − 2 ck ej; dA2 = (pj − pk) × nrm / A2; dm = (dC A2 − C dA2) / (2 A2²)
+      const double inv_A2 = 1 / A2[f], half_inv2 = 0.5 * inv_A2 * inv_A2;
+      const double dAx = inv_A2 * (djky * nz[f] - djkz * ny[f]);
+      const double dAy = inv_A2 * (djkz * nx[f] - djkx * nz[f]);
+      const double dAz = inv_A2 * (djkx * ny[f] - djky * nx[f]);
+      dmx[f] = half_inv2 * ((-2 * cj[f] * ekx - 2 * ck[f] * ejx) * A2[f] - C[f] * dAx);
+      dmy[f] = half_inv2 * ((-2 * cj[f] * eky - 2 * ck[f] * ejy) * A2[f] - C[f] * dAy);
+      dmz[f] = half_inv2 * ((-2 * cj[f] * ekz - 2 * ck[f] * ejz) * A2[f] - C[f] * dAz);
       // crude curvature of the MIPS term: isotropic, from its scale C / A2 per squared length
-      e.gn += lambda * (std::abs(ci) + std::abs(cj) + std::abs(ck) + 1) / A2[f] * Eigen::Matrix3d::Identity();
+      curvature[f] = (std::abs(ci[f]) + std::abs(cj[f]) + std::abs(ck[f]) + 1) * inv_A2;
+    }
+    for (std::size_t f = 0; f < n; ++f) {
+      e.energy += r[f] * r[f] + lambda * mips[f];
+      e.grad += 2 * r[f] * Vec3(drx[f], dry[f], drz[f]) + lambda * Vec3(dmx[f], dmy[f], dmz[f]);
+      const double iso = lambda * curvature[f];
+      gxx += 2 * drx[f] * drx[f] + iso, gxy += 2 * drx[f] * dry[f], gxz += 2 * drx[f] * drz[f];
+      gyy += 2 * dry[f] * dry[f] + iso, gyz += 2 * dry[f] * drz[f], gzz += 2 * drz[f] * drz[f] + iso;
     }
   }
+  e.gn << gxx, gxy, gxz, gxy, gyy, gyz, gxz, gyz, gzz;
   return e;
 }
 
@@ -1308,8 +1396,10 @@ enum class Move { skipped, rejected, accepted, accepted_significantly };
 Move move_vertex(const Corner* first, const Corner* last, std::vector<Vec3>& positions, std::size_t slot, double& mu,
                  const OptimizeOptions& options, double over_relaxation, double mean_vertex_energy) {
   const auto position = [&positions](int other) -> const Vec3& { return positions[u(other)]; };
+  thread_local FanLanes fan;
+  fan.gather(first, last, position);
   const Vec3 x = positions[slot];
-  const LocalEval e0 = local_energy(first, last, position, x, options.angle_weight, true, options.regularization);
+  const LocalEval e0 = local_energy(fan, x, options.angle_weight, true, options.regularization);
   if (!e0.valid) return Move::skipped;
   const Vec3 t1 = (std::abs(x.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(x).normalized();
   const Vec3 t2 = x.cross(t1);
@@ -1326,7 +1416,7 @@ Move move_vertex(const Corner* first, const Corner* last, std::vector<Vec3>& pos
     const double factor = -relaxation / (h00 * h11 - h01 * h01);
     const Eigen::Vector2d d(factor * (h11 * grad2.x() - h01 * grad2.y()), factor * (h00 * grad2.y() - h01 * grad2.x()));
     const Vec3 y = (x + P * d).normalized();
-    const LocalEval e1 = local_energy(first, last, position, y, options.angle_weight, false, options.regularization);
+    const LocalEval e1 = local_energy(fan, y, options.angle_weight, false, options.regularization);
     if (e1.valid && e1.energy < e0.energy) {
       positions[slot] = y;
       mu = std::max(m * 0.3, 1e-4);
@@ -1420,8 +1510,9 @@ double AreaOptimizer::vertex_energy(const std::vector<Vec3>& s, int vertex, cons
   const Tables& t = *tables_;
   const auto q = u(t.slot_of_vertex[u(vertex)]);
   const auto position = [&](int slot) -> const Vec3& { return s[u(t.vertex_of_slot[u(slot)])]; };
-  const LocalEval e = local_energy(&t.corners[u(t.corner_offsets[q])], t.corners.data() + t.corner_offsets[q + 1],
-                                   position, x, options.angle_weight, gradient != nullptr, options.regularization);
+  FanLanes fan;
+  fan.gather(&t.corners[u(t.corner_offsets[q])], t.corners.data() + t.corner_offsets[q + 1], position);
+  const LocalEval e = local_energy(fan, x, options.angle_weight, gradient != nullptr, options.regularization);
   if (gradient) *gradient = e.grad;
   return e.valid ? e.energy : std::numeric_limits<double>::quiet_NaN();
 }
@@ -1456,9 +1547,8 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
       const auto& face = mesh.faces[u(f)];
       const double A = signed_spherical_triangle_area(s[u(face[0])], s[u(face[1])], s[u(face[2])]);
       const double T = targets[u(f)];
-      const double Ae = options.regularization > 0
-                            ? 0.5 * (A + std::sqrt(A * A + 4 * options.regularization * options.regularization * T * T))
-                            : A;
+      const double eps2_T2 = 4 * options.regularization * options.regularization * T * T;
+      const double Ae = options.regularization > 0 ? regularized_area(A, std::sqrt(A * A + eps2_T2), eps2_T2) : A;
       const double r = std::log(Ae / T);
       face_energy[u(f)] = Ae > 0 ? r * r : std::numeric_limits<double>::infinity();
     }

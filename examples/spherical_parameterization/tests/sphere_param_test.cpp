@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <unistd.h>
+#include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
@@ -20,6 +21,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "lane_math.hpp"
 #include "mesh.hpp"
 #include "param.hpp"
 #include "pipeline.hpp"
@@ -1022,6 +1024,90 @@ TEST(AreaOptimizer, LocalEnergyGradientMatchesFiniteDifferences) {
   const Vec3 across = -s[0];
   EXPECT_TRUE(std::isnan(optimizer.vertex_energy(s, 0, across, {}, &gradient)));
   EXPECT_THROW(optimizer.vertex_energy(s, -1, across, {}), std::invalid_argument);
+}
+
+TEST(AreaOptimizer, LocalEnergyIsTheSumOfItsFacesTerms) {
+  // The local energy (its faces in blocks of lanes) against its definition, face by face. A
+  // capsule's poles have 13 faces: two blocks, the second padded; its faces are large enough for
+  // the atan2 lanes, the ellipsoid's small enough for the series. Inverted positions (x = −s)
+  // in the regularised mode.
+  const auto cot = [](const Vec3& p, const Vec3& q, const Vec3& r) {  // at p
+    const Vec3 a = q - p, b = r - p;
+    return a.dot(b) / a.cross(b).norm();
+  };
+  for (const Mesh& m : {test::capsule(13, 3.0), test::ellipsoid(3, 1, 1.3, 2)}) {
+    const Topology topo(m);
+    const std::vector<double> targets = face_targets(m, {});
+    Vec3 centre = Vec3::Zero();
+    for (const Vec3& v : m.vertices) centre += v / static_cast<double>(m.vertices.size());
+    std::vector<Vec3> s;
+    for (const Vec3& v : m.vertices) s.push_back((v - centre).normalized());
+    const AreaOptimizer optimizer(m, topo, targets);
+    std::size_t max_degree = 0;
+    for (const auto& [lambda, eps] : {std::pair{0.0, 0.0}, {0.005, 0.0}, {5.0, 0.0}, {0.0, 0.1}, {0.0, 1e-3}}) {
+      OptimizeOptions o;
+      o.angle_weight = lambda, o.regularization = eps;
+      for (std::size_t vertex = 0; vertex < m.vertices.size(); ++vertex) {
+        std::vector<Vec3> positions = {1.01 * s[vertex], (s[vertex] + Vec3(0.01, -0.02, 0.015)).normalized()};
+        if (eps > 0) positions.push_back(-s[vertex]);
+        for (const Vec3& x : positions) {
+          double reference = 0;
+          std::size_t degree = 0;
+          for (std::size_t f = 0; f < m.faces.size(); ++f) {
+            const auto& face = m.faces[f];
+            const auto at = std::find(face.begin(), face.end(), static_cast<int>(vertex));
+            if (at == face.end()) continue;
+            ++degree;
+            const auto c = static_cast<std::size_t>(at - face.begin());
+            const auto j = static_cast<std::size_t>(face[(c + 1) % 3]), k = static_cast<std::size_t>(face[(c + 2) % 3]);
+            const double A = signed_spherical_triangle_area(x, s[j], s[k]), T = targets[f];
+            // A_eps = (A + sqrt(A² + 4ε²T²))/2, for A < 0 without the cancellation
+            const double root = std::sqrt(A * A + 4 * eps * eps * T * T);
+            const double Ae = eps > 0 ? (A >= 0 ? 0.5 * (A + root) : 2 * eps * eps * T * T / (root - A)) : A;
+            reference += std::pow(std::log(Ae / T), 2);
+            if (eps > 0) continue;
+            const Vec3 &pi = m.vertices[vertex], &pj = m.vertices[j], &pk = m.vertices[k];
+            const double C = cot(pi, pj, pk) * (s[j] - s[k]).squaredNorm() +
+                             cot(pj, pk, pi) * (s[k] - x).squaredNorm() + cot(pk, pi, pj) * (s[j] - x).squaredNorm();
+            reference += lambda * (C / (2 * (s[j] - x).cross(s[k] - x).norm()) - 1);
+          }
+          max_degree = std::max(max_degree, degree);
+          const double energy = optimizer.vertex_energy(s, static_cast<int>(vertex), x, o);
+          EXPECT_NEAR(energy, reference, 1e-12 * std::max(1.0, reference))
+              << "lambda " << lambda << ", eps " << eps << ", vertex " << vertex << " (" << degree << " faces)";
+        }
+      }
+    }
+    EXPECT_GE(max_degree, m.faces.size() > 1000 ? 6u : 13u);
+  }
+}
+
+TEST(LaneMath, LogOfNormalIsWithinFourUlpOfStdLog) {
+  // across the whole normal range, near 1 (where ln x is small) and at the reduction's seams
+  std::mt19937_64 random(5);
+  std::uniform_real_distribution<double> exponent(-707, 709), near_one(-1e-6, 1e-6);
+  std::vector<double> xs = {1.0,
+                            2.0,
+                            0.5,
+                            std::sqrt(2.0),
+                            std::nextafter(std::sqrt(2.0), 0.0),
+                            std::numeric_limits<double>::min(),
+                            std::numeric_limits<double>::max(),
+                            std::nextafter(1.0, 2.0),
+                            std::nextafter(1.0, 0.0)};
+  for (int i = 0; i < 200000; ++i) xs.push_back(std::exp(exponent(random))), xs.push_back(1 + near_one(random));
+  for (const double x : xs) {
+    ASSERT_TRUE(is_normal_positive(x)) << x;
+    const double exact = std::log(x);
+    const double ulp = std::nextafter(std::abs(exact), 1e308) - std::abs(exact);
+    if (exact == 0)
+      EXPECT_EQ(log_of_normal(x), 0.0);
+    else
+      EXPECT_LE(std::abs(log_of_normal(x) - exact), 4 * ulp) << "x = " << x;
+  }
+  for (const double x :
+       {0.0, -1.0, 1e-310, std::numeric_limits<double>::infinity(), std::numeric_limits<double>::quiet_NaN()})
+    EXPECT_FALSE(is_normal_positive(x)) << x;
 }
 
 TEST(AreaOptimizer, OnlyTheStartingVerticesMoveInTheFirstSweep) {
