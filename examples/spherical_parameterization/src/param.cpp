@@ -1267,7 +1267,7 @@ LocalEval local_energy(const FanLanes& fan, const Vec3& x, double lambda, bool w
       // triangle_area_from_det's series where it applies; atan2 below for the other lanes
       const double t = N[f] / D[f], t2 = t * t;
       A[f] = 2 * t * (1 - t2 * (1.0 / 3 - t2 * (1.0 / 5 - t2 / 7)));
-      called[f] = (D[f] > 0) & (std::abs(N[f]) < 0.01 * D[f]) ? 0.0 : 1.0;
+      called[f] = ((D[f] > 0) & (std::abs(N[f]) < 0.01 * D[f])) ? 0.0 : 1.0;
     }
     for (std::size_t f = 0; f < n; ++f)
       if (called[f] != 0) A[f] = 2 * std::atan2(N[f], D[f]);
