@@ -1564,8 +1564,10 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
   std::vector<Vec3> positions(nv);
   for (std::size_t q = 0; q < nv; ++q) positions[q] = s[u(t.vertex_of_slot[q])];
   std::vector<double> mu(nv, 1e-3);  // per-vertex Levenberg damping
-  // Active set: a vertex is revisited while it or a neighbour moved noticeably.
-  std::vector<char> active(nv, 1), next_active(nv, 0);
+  // Active set: a vertex is revisited while it or a neighbour moved noticeably. Each move marks
+  // its own slot only, and the next active set is read from those marks after the sweep: marking
+  // the neighbours from the moves had both threads write the same cache lines all sweep long.
+  std::vector<char> active(nv, 1), next_active(nv, 0), moved(nv, 0);
   if (options.start_active.size() == nv)
     for (std::size_t q = 0; q < nv; ++q) active[q] = options.start_active[u(t.vertex_of_slot[q])];
   // Gauss–Seidel, one colour class at a time: vertices of one colour share no face, so their
@@ -1579,7 +1581,7 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
                                : options.over_relaxation;
   for (int sweep = 0; sweep < max_sweeps; ++sweep) {
     std::size_t visited = 0;
-    std::fill(next_active.begin(), next_active.end(), 0);
+    std::fill(moved.begin(), moved.end(), 0);
     for (std::size_t colour = 0; colour + 1 < t.class_offsets.size(); ++colour) {
       const auto first = static_cast<std::ptrdiff_t>(t.class_offsets[colour]);
       const auto last = static_cast<std::ptrdiff_t>(t.class_offsets[colour + 1]);
@@ -1588,14 +1590,19 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
         const auto q = u(slot);
         if (!active[q]) continue;
         ++visited;
-        if (move_vertex(t.corners.data() + t.corner_offsets[q], t.corners.data() + t.corner_offsets[q + 1], positions,
-                        q, mu[q], options, result.over_relaxation,
-                        mean_vertex_energy) == Move::accepted_significantly) {
-          std::atomic_ref<char>(next_active[q]).store(1, std::memory_order_relaxed);
-          for (int k = t.nbr_offsets[q]; k < t.nbr_offsets[q + 1]; ++k)
-            std::atomic_ref<char>(next_active[u(t.nbrs[u(k)])]).store(1, std::memory_order_relaxed);
-        }
+        moved[q] =
+            move_vertex(t.corners.data() + t.corner_offsets[q], t.corners.data() + t.corner_offsets[q + 1], positions,
+                        q, mu[q], options, result.over_relaxation, mean_vertex_energy) == Move::accepted_significantly;
       }
+    }
+    const auto slots = static_cast<std::ptrdiff_t>(nv);
+#pragma omp parallel for schedule(static) if (slots >= 4096)
+    for (std::ptrdiff_t slot = 0; slot < slots; ++slot) {
+      const auto q = u(slot);
+      char any = moved[q];
+      for (int k = t.nbr_offsets[q]; k < t.nbr_offsets[q + 1]; ++k)
+        any = static_cast<char>(any | moved[u(t.nbrs[u(k)])]);
+      next_active[q] = any;
     }
     active.swap(next_active);
     result.sweeps = sweep + 1;
