@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 
 namespace sphparam {
 
@@ -45,7 +46,7 @@ inline double log_of_normal(double x) {
 
 /// True for the arguments log_of_normal takes: normal, finite and positive (false for NaN).
 inline bool is_normal_positive(double x) {
-  return x >= 2.2250738585072014e-308 && x <= 1.7976931348623157e308;
+  return x >= std::numeric_limits<double>::min() && x <= std::numeric_limits<double>::max();
 }
 
 }  // namespace sphparam

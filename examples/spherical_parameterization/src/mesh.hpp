@@ -125,15 +125,22 @@ struct Metrics {
 /// `orientation_sign` is +1 for an outward-oriented input, −1 for an inward one.
 Metrics evaluate_map(const Mesh& mesh, const std::vector<Vec3>& sphere, double orientation_sign);
 
+/// True where triangle_area_from_det takes its series: den > 0 and |num| < 0.01·den (no
+/// short-circuit, so that loops over it vectorize).
+inline bool triangle_area_series_applies(double num, double den) {
+  return (den > 0) & (std::abs(num) < 0.01 * den);
+}
+/// 2·atan(x) by a four-term series, exact to rounding for |x| < 0.01 (next term < 1.2e-17
+/// relative).
+inline double twice_atan_series(double x) {
+  const double x2 = x * x;
+  return 2 * x * (1 - x2 * (1.0 / 3 - x2 * (1.0 / 5 - x2 / 7)));
+}
 /// 2·atan2(num, den): the area of a spherical triangle (a, b, c) from num = det[a, b, c] and
 /// den = 1 + a·b + b·c + c·a (Van Oosterom–Strackee). For the small triangles of fine meshes
-/// (|num| < 0.01·den) a four-term series of atan, exact to rounding (next term < 1.2e-17
-/// relative) and several times cheaper than atan2, which dominated the area optimization.
+/// the series above, several times cheaper than atan2, which dominated the area optimization.
 inline double triangle_area_from_det(double num, double den) {
-  if (den > 0 && std::abs(num) < 0.01 * den) {
-    const double x = num / den, x2 = x * x;
-    return 2 * x * (1 - x2 * (1.0 / 3 - x2 * (1.0 / 5 - x2 / 7)));
-  }
+  if (triangle_area_series_applies(num, den)) return twice_atan_series(num / den);
   return 2 * std::atan2(num, den);
 }
 /// Exact spherical-triangle area (unsigned), Van Oosterom–Strackee.

@@ -1265,9 +1265,8 @@ LocalEval local_energy(const FanLanes& fan, const Vec3& x, double lambda, bool w
       D[f] = 1 + x0 * (pjx[f] + pkx[f]) + x1 * (pjy[f] + pky[f]) + x2 * (pjz[f] + pkz[f]) +
              (pjx[f] * pkx[f] + pjy[f] * pky[f] + pjz[f] * pkz[f]);
       // triangle_area_from_det's series where it applies; atan2 below for the other lanes
-      const double t = N[f] / D[f], t2 = t * t;
-      A[f] = 2 * t * (1 - t2 * (1.0 / 3 - t2 * (1.0 / 5 - t2 / 7)));
-      called[f] = ((D[f] > 0) & (std::abs(N[f]) < 0.01 * D[f])) ? 0.0 : 1.0;
+      A[f] = twice_atan_series(N[f] / D[f]);
+      called[f] = triangle_area_series_applies(N[f], D[f]) ? 0.0 : 1.0;
     }
     for (std::size_t f = 0; f < n; ++f)
       if (called[f] != 0) A[f] = 2 * std::atan2(N[f], D[f]);
@@ -1276,8 +1275,9 @@ LocalEval local_energy(const FanLanes& fan, const Vec3& x, double lambda, bool w
       // faces, so vertices may pass through inverted states (Garanzha et al.'s continuation).
       double root[block];
       for (std::size_t f = 0; f < block; ++f) {
-        root[f] = std::sqrt(A[f] * A[f] + eps2 * T[f] * T[f]);
-        ratio[f] = regularized_area(A[f], root[f], eps2 * T[f] * T[f]) / T[f];
+        const double eps2_T2 = eps2 * T[f] * T[f];
+        root[f] = std::sqrt(A[f] * A[f] + eps2_T2);
+        ratio[f] = regularized_area(A[f], root[f], eps2_T2) / T[f];
         r[f] = log_of_normal(ratio[f]);
       }
       for (std::size_t f = 0; f < n; ++f)
