@@ -632,8 +632,8 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
   bool still_crushed = false, below_rounding = false, deeply_crushed = false;
   std::vector<double> quantiles;  // the 0.5 % quantile of the log stretch after each solve
   constexpr int window = 4;       // reweightings over which progress is judged
-  // A deeply crushed map (below) is reweighted by up to e^±10 a solve, until e^-6.
-  constexpr double deep_clamp = 10.0, deep_enough = -6.0;
+  // A deeply crushed map (below e^-20, see there) is reweighted by up to e^±10 a solve, until e^-6.
+  constexpr double deep_clamp = 10.0, deep_enough = -6.0, deep_below = -20.0;
   for (int iteration = 0;; ++iteration) {
     std::vector<Eigen::Triplet<double>> trips;
     trips.reserve((lower_only ? 3 : 6) * nf + nv);
@@ -719,7 +719,7 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
     // e^-36.2), a tube nothing in its first four (capsule40_120k: e^-32.5, -33.2, -32.5, -31.9,
     // -31.5; 14 solves instead of 16, the initial map 2.84-3.06 s -> 2.62-2.70 s, the final
     // area mean|d| the same, 0.0368).
-    if (sorted[q] < -20.0 && (done == window || (done == 1 && sorted[q] - quantiles.front() < 1.0)))
+    if (sorted[q] < deep_below && (done == window || (done == 1 && sorted[q] - quantiles.front() < 1.0)))
       deeply_crushed = true;
     const double enough = deeply_crushed ? deep_enough : -4.0;
     still_crushed = sorted[q] <= enough;
@@ -763,8 +763,19 @@ std::vector<Vec3> tutte_sphere_map(const Mesh& mesh, const Topology& topo, const
     if (stalled && (crushed || below_rounding)) break;
     // the full stretch (exponent 1) converges in half the reweightings of its square root
     // (bunny_35k: 7 against 14) to the same OT result
-    const double clamp = deeply_crushed ? deep_clamp : 4.0;
-    for (std::size_t f = 0; f < nf; ++f) sigma[f] *= std::exp(std::clamp(logs[f], -clamp, clamp));
+    // Between e^-20 and e^-6 the crushed side (weaker springs) takes up to e^-10 a solve and the
+    // stretched side keeps e^4. A crushed face opens by a third to two thirds of its weight's
+    // change (armadillo_43k at e^±4: e^-18.9, -16.1, -14.0, -12.1, -10.6, ... -3.0); larger steps
+    // on the stretched side overshoot (a symmetric e^±5: bunny_35k's OT 6 -> 9 Newton
+    // iterations, here 6). Against e^±4: reweightings armadillo_43k 10 -> 5, arm 13 -> 8,
+    // bunny_35k 7 -> 4, blub 9 -> 5, elephant 3 -> 1; the final area mean|d| the same or lower on
+    // all 34 shared and hard meshes (armadillo_43k 0.0219 -> 0.0196, spiky_25k 0.0549 -> 0.0492),
+    // at up to 2 more OT Newton iterations (arm 7 -> 9, elephant 4 -> 6). Below e^-20 the steps
+    // stay at e^4 until the map is judged deeply crushed (above, on the pace of those steps).
+    const bool moderately_crushed = sorted[q] < deep_enough && sorted[q] >= deep_below;
+    const double shrink = deeply_crushed || moderately_crushed ? deep_clamp : 4.0;
+    const double grow = deeply_crushed ? deep_clamp : 4.0;
+    for (std::size_t f = 0; f < nf; ++f) sigma[f] *= std::exp(std::clamp(logs[f], -shrink, grow));
     ++done;
   }
   if (reweightings) *reweightings = done;

@@ -713,6 +713,19 @@ TEST(Stages, StretchReweightingOpensCrushedSpikesOnCholmodsPath) {
   EXPECT_LE(r.flips, m.faces.size() / 200);
 }
 
+TEST(Stages, StretchReweightingOpensAModeratelyCrushedTubeInLargeSteps) {
+  // A tube 15 radii long (1,610 vertices), crushed by e^-12.6 (0.5 % quantile): between e^-20
+  // and e^-6 the crushed side takes steps of up to e^-10 a reweighting (4 reweightings; 7 when
+  // it took e^-4, as the stretched side still does).
+  const Mesh m = test::capsule(24, 15);
+  const ReweightingOutcome r = reweighting_outcome(m);
+  EXPECT_LT(r.plain_q, -10.0);  // moderately crushed, or the test says nothing
+  EXPECT_GT(r.plain_q, -20.0);
+  EXPECT_LE(r.reweightings, 5);
+  EXPECT_GT(r.reweighted_q, -6.0);
+  EXPECT_LE(r.flips, m.faces.size() / 200);
+}
+
 TEST(Stages, StretchReweightingOpensADeeplyCrushedTubeInFewSolves) {
   // A tube 40 radii long (16,994 vertices): its Tutte map crushes 0.5 % of the faces by e^-33
   // or more, and e^±4 per reweighting opens them by about e^0.5 per solve (still e^-13.9 on the
