@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Generates the hard inputs of sdot-sphere-param (docs/spherical_parameterization.md, "Hard shapes").
 
-    /usr/bin/python3 scripts/hard_meshes.py OUTDIR [--cases tubes capsule capsule40 spiky folds slivers]
+    /usr/bin/python3 scripts/hard_meshes.py OUTDIR [--cases tubes capsule capsule40 spiky folds slivers cones]
                                            [--sizes 25000 60000 120000] [--seed 1]
 
 Writes OUTDIR/CASE_SIZEk.off for every case and size: closed, genus-0, manifold, outward-oriented
@@ -14,6 +14,10 @@ depend on SIZE, only its resolution does). Every case is deterministic (fixed se
   spiky    a sphere with --spikes (default 120) long spikes: the radial function
            r = 1 + 2.5 sum_k exp(-(angle to spike k / 0.06)^2) on a fine icosphere (star-shaped,
            so embedded and genus 0)
+  cones    a sphere with 8 long conical spikes: r = 1 + 13 cos(pi/2 angle/0.15) within 0.15 rad
+           of each spike's direction, 1 elsewhere (star-shaped): cones 14 radii long whose
+           triangles are stretched about 90 times along them, so that few vertices resolve each
+           spike (about 150 at 25k)
   folds    a cortex-like surface: r = 1 + 0.12 tanh(4 g) with g a domain-warped product of sines
            of frequency 18: folds about 0.17 wide and 0.24 deep (star-shaped)
   capsule  one closed tube whose length is 300 times its radius (3 times the ratio of the tubes
@@ -106,6 +110,15 @@ def spiky(size, seed, spikes=120, length=2.5, width=0.06):
     d = spike_directions(spikes, seed)
     angle = np.arccos(np.clip(v @ d.T, -1, 1))
     r = 1 + length * np.exp(-(angle / width) ** 2).sum(axis=1)
+    return v * r[:, None], f
+
+
+def cones(size, seed, count=8, length=14.0, width=0.15):
+    v, f = icosphere(size_to_frequency(size))
+    d = spike_directions(count, seed)
+    angle = np.arccos(np.clip(v @ d.T, -1, 1))
+    bump = np.where(angle < width, (length - 1) * np.cos(0.5 * math.pi * np.minimum(angle / width, 1)), 0)
+    r = 1 + bump.max(axis=1)
     return v * r[:, None], f
 
 
@@ -490,7 +503,7 @@ def capsule40(size, seed):
 
 
 CASES = {'tubes': tubes, 'capsule': capsule, 'capsule40': capsule40, 'spiky': spiky, 'folds': folds,
-         'slivers': slivers}
+         'slivers': slivers, 'cones': cones}
 
 
 def main():
