@@ -105,20 +105,22 @@ def spike_directions(count, seed):
 
 
 # ----------------------------------------------------------------------------------- the cases
-def spiky(size, seed, spikes=120, length=2.5, width=0.06):
+def sphere_and_spike_angles(size, count, seed):
+    """An icosphere of about `size` vertices and each vertex's angle to each of `count` spike
+    directions (vertices × spikes)."""
     v, f = icosphere(size_to_frequency(size))
-    d = spike_directions(spikes, seed)
-    angle = np.arccos(np.clip(v @ d.T, -1, 1))
+    return v, f, np.arccos(np.clip(v @ spike_directions(count, seed).T, -1, 1))
+
+
+def spiky(size, seed, spikes=120, length=2.5, width=0.06):
+    v, f, angle = sphere_and_spike_angles(size, spikes, seed)
     r = 1 + length * np.exp(-(angle / width) ** 2).sum(axis=1)
     return v * r[:, None], f
 
 
 def cones(size, seed, count=8, length=14.0, width=0.15):
-    v, f = icosphere(size_to_frequency(size))
-    d = spike_directions(count, seed)
-    angle = np.arccos(np.clip(v @ d.T, -1, 1))
-    bump = np.where(angle < width, (length - 1) * np.cos(0.5 * math.pi * np.minimum(angle / width, 1)), 0)
-    r = 1 + bump.max(axis=1)
+    v, f, angle = sphere_and_spike_angles(size, count, seed)
+    r = 1 + np.where(angle < width, (length - 1) * np.cos(0.5 * math.pi * (angle / width)), 0).max(axis=1)
     return v * r[:, None], f
 
 
