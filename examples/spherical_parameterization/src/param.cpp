@@ -1659,6 +1659,98 @@ Mesh subdivide(const Mesh& mesh) {
   return out;
 }
 
+std::vector<int> graded_levels(const Mesh& mesh, const std::vector<double>& targets, double ratio, int max_level) {
+  const std::size_t nf = mesh.faces.size(), nv = mesh.vertices.size();
+  std::vector<int> levels(nf, 0);
+  std::vector<double> mass(nv), ring_min(nv);
+  auto sub_target = [&](std::size_t f) { return targets[f] / std::ldexp(1.0, 2 * levels[f]); };
+  // A face's sub-triangles against the lightest vertex Dirac within one ring of its corners, not
+  // against its neighbouring faces: a sliver next to large faces has vertices as heavy as theirs.
+  // Raising a face's level lightens its corners, which may raise the next ring's levels: repeat
+  // until nothing changes (levels only grow, up to max_level).
+  for (bool changed = true; changed;) {
+    changed = false;
+    std::fill(mass.begin(), mass.end(), 0.0);
+    for (std::size_t f = 0; f < nf; ++f)
+      for (int v : mesh.faces[f]) mass[u(v)] += sub_target(f) / 3;
+    std::fill(ring_min.begin(), ring_min.end(), std::numeric_limits<double>::infinity());
+    for (std::size_t f = 0; f < nf; ++f) {
+      const auto& t = mesh.faces[f];
+      const double lightest = std::min({mass[u(t[0])], mass[u(t[1])], mass[u(t[2])]});
+      for (int v : t) ring_min[u(v)] = std::min(ring_min[u(v)], lightest);
+    }
+    for (std::size_t f = 0; f < nf; ++f) {
+      const auto& t = mesh.faces[f];
+      const double bound = ratio * std::min({ring_min[u(t[0])], ring_min[u(t[1])], ring_min[u(t[2])]});
+      int level = levels[f];
+      while (level < max_level && targets[f] / std::ldexp(1.0, 2 * level) > bound) ++level;
+      if (level != levels[f]) levels[f] = level, changed = true;
+    }
+  }
+  return levels;
+}
+
+DiracSet lattice_diracs(const Mesh& mesh, const std::vector<Vec3>& s, const std::vector<double>& targets,
+                        const std::vector<int>& levels) {
+  const std::size_t nv = s.size();
+  DiracSet out;
+  out.sites = s;
+  out.masses.assign(nv, 0.0);
+  const int max_level = levels.empty() ? 0 : *std::max_element(levels.begin(), levels.end());
+  const std::uint64_t steps = std::uint64_t{1} << max_level;  // edge positions, in units of 2^-max_level
+  std::unordered_map<std::uint64_t, int> edge_points;
+  auto add = [&](const Vec3& p) {
+    out.sites.push_back(p);
+    out.masses.push_back(0.0);
+    return static_cast<int>(out.sites.size() - 1);
+  };
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+    const auto& t = mesh.faces[f];
+    const int m = 1 << levels[f];
+    const double share = targets[f] / (3.0 * m * m);  // a third of a sub-triangle's target
+    // lattice point (i, j) of the face: weights (m - i - j, i, j) on (t[0], t[1], t[2])
+    auto point = [&](int i, int j) -> int {
+      const int w[3] = {m - i - j, i, j};
+      int zeros = 0;
+      for (int k = 0; k < 3; ++k) zeros += w[k] == 0;
+      if (zeros == 2)
+        for (int k = 0; k < 3; ++k)
+          if (w[k] == m) return t[u(k)];
+      if (zeros == 1) {
+        // on the edge opposite the zero weight: keyed by its ends (lower index first) and the
+        // position from the lower end, so both faces find the same point at the same place
+        int k = 0;
+        while (w[k] != 0) ++k;
+        int a = t[u((k + 1) % 3)], b = t[u((k + 2) % 3)];
+        int wb = w[(k + 2) % 3];
+        if (a > b) std::swap(a, b), wb = w[(k + 1) % 3];
+        const std::uint64_t pos = static_cast<std::uint64_t>(wb) * (steps / static_cast<std::uint64_t>(m));
+        const std::uint64_t key =
+            (static_cast<std::uint64_t>(a) * nv + static_cast<std::uint64_t>(b)) * (steps + 1) + pos;
+        const auto found = edge_points.find(key);
+        if (found != edge_points.end()) return found->second;
+        const double x = static_cast<double>(pos) / static_cast<double>(steps);
+        const int idx = add(((1 - x) * s[u(a)] + x * s[u(b)]).normalized());
+        edge_points.emplace(key, idx);
+        return idx;
+      }
+      return add(((w[0] * s[u(t[0])] + w[1] * s[u(t[1])] + w[2] * s[u(t[2])]) / m).normalized());
+    };
+    if (m == 1) {
+      for (int v : t) out.masses[u(v)] += share;
+      continue;
+    }
+    // corners get 1 sub-triangle, edge points 3, interior points 6
+    for (int i = 0; i <= m; ++i)
+      for (int j = 0; i + j <= m; ++j) {
+        const int zeros = (i == 0) + (j == 0) + (i + j == m);
+        const int idx = point(i, j);
+        out.masses[u(idx)] += share * (zeros == 2 ? 1 : zeros == 1 ? 3 : 6);
+      }
+  }
+  return out;
+}
+
 }  // namespace sphparam
 
 namespace sphparam {

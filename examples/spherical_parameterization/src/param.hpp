@@ -250,4 +250,20 @@ class AreaOptimizer {
 /// 1-to-4 subdivision (edge midpoints): the refined mesh keeps the original vertices first.
 Mesh subdivide(const Mesh& mesh);
 
+/// Diracs of the OT stage: the mesh vertices first (at `s`, in order), then lattice points of
+/// the faces refined by `levels` (face f split into 4^levels[f] sub-triangles; points on an edge
+/// shared when both faces have them). Each sub-triangle gives a third of its share of the face's
+/// target to each corner, so the masses sum to the targets' sum.
+struct DiracSet {
+  std::vector<Vec3> sites;
+  std::vector<double> masses;
+};
+DiracSet lattice_diracs(const Mesh& mesh, const std::vector<Vec3>& s, const std::vector<double>& targets,
+                        const std::vector<int>& levels);
+
+/// Refinement levels (0 to `max_level`) that grade the Dirac masses: a face's sub-triangles are
+/// at most `ratio` times the smallest sub-triangle at any of its vertices. All 0 on a mesh whose
+/// neighbouring faces' targets are within `ratio` of each other.
+std::vector<int> graded_levels(const Mesh& mesh, const std::vector<double>& targets, double ratio, int max_level);
+
 }  // namespace sphparam

@@ -22,6 +22,12 @@ struct PipelineOptions {
   /// Should flips survive the untangling, OT and untangling rerun with one more refinement
   /// level, up to this many levels.
   int max_refine = 1;
+  /// Graded Diracs (refinement 0 only): where a face's target is more than
+  /// `graded_diracs_from` times the lightest vertex Dirac within one ring of its corners, faces
+  /// are split (up to 4^3 sub-triangles) until no sub-triangle exceeds `graded_dirac_ratio` times
+  /// that lightest Dirac. 0 disables them.
+  double graded_dirac_ratio = 8;
+  double graded_diracs_from = 64;
   /// Max relative mass error of the OT solve. The map's per-face area error after OT is a sampling
   /// error of about one cell (area mean|d| 0.08–0.12), which tighter masses do not reduce: on the
   /// 16 shared meshes 1e-4 took 1–2 more Newton iterations and left the final figures of 13 meshes
@@ -82,6 +88,7 @@ struct OtRecord {
   double rms_relative_error = 0;
   std::size_t sites = 0;
   int refine = 0;
+  std::size_t graded_faces = 0;  ///< faces split into graded Diracs (refinement 0)
   double min_site_distance = 0;
   double height_range = 0;  ///< max h − min h
   std::vector<double> error_history;

@@ -130,6 +130,7 @@ RunResult run_parameterization(Mesh&& raw, const ReadInfo& info, PipelineOptions
                   {"rms_relative_mass_error", R.ot.rms_relative_error},
                   {"diracs", R.ot.sites},
                   {"refinement_levels", R.ot.refine},
+                  {"graded_faces", R.ot.graded_faces},
                   {"height_range", R.ot.height_range},
                   {"error_history", R.ot.error_history}};
   const double visits_per_vertex = visit_limit(options.optimizer);

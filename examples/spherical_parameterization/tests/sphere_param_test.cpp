@@ -1230,6 +1230,119 @@ TEST(Stages, SubdivideKeepsOriginalVerticesFirst) {
   for (std::size_t i = 0; i < m.vertices.size(); ++i) EXPECT_EQ(f.vertices[i], m.vertices[i]);
 }
 
+TEST(Stages, LatticeDiracsShareEdgePointsAndKeepEveryFacesTarget) {
+  const Mesh m = test::icosphere(1);  // 42 vertices, 120 edges, 80 faces
+  std::vector<Vec3> s;
+  for (const auto& v : m.vertices) s.push_back(v.normalized());
+  std::vector<double> targets(m.faces.size());
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> positive(0.5, 2.0);
+  for (double& t : targets) t = positive(rng);
+  const double total = std::accumulate(targets.begin(), targets.end(), 0.0);
+  const auto check = [&](const std::vector<int>& levels, std::size_t expected_sites) {
+    const DiracSet d = lattice_diracs(m, s, targets, levels);
+    EXPECT_EQ(d.sites.size(), expected_sites);
+    EXPECT_EQ(d.masses.size(), d.sites.size());
+    if (d.masses.size() != d.sites.size()) return d;
+    for (std::size_t i = 0; i < s.size(); ++i) EXPECT_EQ(d.sites[i], s[i]);  // the mesh vertices first
+    EXPECT_NEAR(std::accumulate(d.masses.begin(), d.masses.end(), 0.0), total, 1e-12 * total);
+    double closest = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < d.sites.size(); ++i) {
+      EXPECT_NEAR(d.sites[i].norm(), 1.0, 1e-15);
+      EXPECT_GT(d.masses[i], 0.0) << "Dirac " << i;
+      for (std::size_t j = 0; j < i; ++j) closest = std::min(closest, (d.sites[i] - d.sites[j]).norm());
+    }
+    EXPECT_GT(closest, 0.01);  // an edge's points are shared, never doubled
+    return d;
+  };
+  // unrefined: the vertex masses of the OT stage without grading
+  const DiracSet plain = check(std::vector<int>(m.faces.size(), 0), 42);
+  const auto vertex_masses = vertex_targets(m, targets);
+  for (std::size_t i = 0; i < s.size(); ++i) EXPECT_NEAR(plain.masses[i], vertex_masses[i], 1e-15);
+  check(std::vector<int>(m.faces.size(), 1), 42 + 120);               // + a point per edge
+  check(std::vector<int>(m.faces.size(), 2), 42 + 3 * 120 + 3 * 80);  // + 3 per edge, 3 inside
+  // one face split into 16, its neighbours not: points on its edges that they do not have
+  std::vector<int> one(m.faces.size(), 0);
+  one[5] = 2;
+  const DiracSet single = check(one, 42 + 3 * 3 + 3);
+  for (int v : m.faces[5]) {
+    double expected = 0;
+    for (std::size_t f = 0; f < m.faces.size(); ++f)
+      for (int w : m.faces[f])
+        if (w == v) expected += targets[f] / (f == 5 ? 48.0 : 3.0);
+    EXPECT_NEAR(single.masses[u(v)], expected, 1e-15);
+  }
+}
+
+TEST(Stages, GradedLevelsBoundEachFaceByTheLightestDiracNearIt) {
+  const Mesh m = test::icosphere(3);
+  const auto uniform = face_targets(m, {});
+  const double ratio = 8;
+  const auto expect_levels = [&](const std::vector<double>& targets, const std::vector<int>& levels) {
+    // recomputed from the definition: a face's sub-triangles are at most `ratio` times the
+    // lightest vertex Dirac within one ring of its corners, unless at the deepest level (3)
+    std::vector<double> mass(m.vertices.size(), 0.0);
+    for (std::size_t f = 0; f < m.faces.size(); ++f)
+      for (int v : m.faces[f]) mass[u(v)] += targets[f] / std::pow(4.0, levels[f]) / 3;
+    std::vector<double> ring(m.vertices.size(), std::numeric_limits<double>::infinity());
+    for (const auto& t : m.faces)
+      for (int v : t)
+        for (int w : t) ring[u(v)] = std::min(ring[u(v)], mass[u(w)]);
+    for (std::size_t f = 0; f < m.faces.size(); ++f) {
+      const auto& t = m.faces[f];
+      const double bound = ratio * std::min({ring[u(t[0])], ring[u(t[1])], ring[u(t[2])]});
+      ASSERT_GE(levels[f], 0);
+      ASSERT_LE(levels[f], 3);
+      if (levels[f] < 3) {
+        EXPECT_LE(targets[f] / std::pow(4.0, levels[f]), bound) << "face " << f;
+      }
+    }
+  };
+  // faces of equal targets, or a sliver among them (its vertices are as heavy as their others):
+  // nothing to split
+  auto sliver = uniform;
+  sliver[17] *= 1e-4;
+  for (const auto& targets : {uniform, sliver}) {
+    const auto levels = graded_levels(m, targets, ratio, 3);
+    EXPECT_EQ(std::count(levels.begin(), levels.end(), 0), static_cast<std::ptrdiff_t>(m.faces.size()));
+  }
+  // a cap of faces 300 times heavier than the rest, like a spike's: the levels step down ring by
+  // ring outwards from its rim
+  auto cap = uniform;
+  const Vec3 axis = Vec3(1, 2, 3).normalized();
+  for (std::size_t f = 0; f < m.faces.size(); ++f) {
+    const auto& t = m.faces[f];
+    if ((m.vertices[u(t[0])] + m.vertices[u(t[1])] + m.vertices[u(t[2])]).normalized().dot(axis) > 0.9) cap[f] *= 300;
+  }
+  const auto levels = graded_levels(m, cap, ratio, 3);
+  expect_levels(cap, levels);
+  for (int level : {1, 2, 3}) EXPECT_GT(std::count(levels.begin(), levels.end(), level), 0) << "level " << level;
+  for (std::size_t f = 0; f < m.faces.size(); ++f)
+    if (cap[f] == uniform[f]) {
+      EXPECT_EQ(levels[f], 0) << "face " << f;  // the light side keeps its Diracs
+    }
+}
+
+TEST(Pipeline, GradedDiracsSpareSpikesTheRerunOnFinerDiracs) {
+  // 4 spikes 14 radii long: each one's faces are 50-100 times the lightest Dirac beside its
+  // base. Vertex Diracs fold the faces around the bases past what the untangling opens, and the
+  // OT and untangling run again on 4 times the Diracs; graded ones leave no fold there.
+  const Mesh m = test::spiky_sphere(5, 4, 14.0, 0.2);
+  PipelineOptions plain;
+  plain.graded_dirac_ratio = 0;
+  const auto with = run_parameterization(m, ReadInfo{}, PipelineOptions{}, {}, false, "generated");
+  const auto without = run_parameterization(m, ReadInfo{}, plain, {}, false, "generated");
+  ASSERT_EQ(with.status, "ok");
+  ASSERT_EQ(without.status, "ok");
+  EXPECT_GT(with.report["ot"]["graded_faces"].get<std::size_t>(), 0u);
+  EXPECT_EQ(without.report["ot"]["graded_faces"].get<std::size_t>(), 0u);
+  EXPECT_EQ(with.report["fallbacks"]["ot_reruns"].get<int>(), 0);
+  EXPECT_EQ(without.report["fallbacks"]["ot_reruns"].get<int>(), 1);
+  EXPECT_EQ(with.report["final_map"]["flips"].get<std::size_t>(), 0u);
+  EXPECT_LT(with.report["final_map"]["area_mean_abs"].get<double>(),
+            without.report["final_map"]["area_mean_abs"].get<double>());
+}
+
 // ------------------------------------------------------------- sub-resolution vertices
 TEST(SubResolution, RemovesTheSplitVerticesAndPutsThemBackOnTheirChords) {
   const Mesh sphere = test::icosphere(3);
@@ -1392,6 +1505,14 @@ TEST(Pipeline, RejectsInvalidSpacingOptionsNamingTheField) {
     bad = {};
     bad.min_spacing = value;
     expect_rejected(bad, "separation_threshold");
+  }
+  for (double value : {0.5, 1.0, -1.0, nan, inf}) {
+    PipelineOptions bad;
+    bad.graded_dirac_ratio = value;
+    expect_rejected(bad, "graded_dirac_ratio");
+    bad = {};
+    bad.graded_diracs_from = value == 1.0 ? 0.0 : value;
+    expect_rejected(bad, "graded_diracs_from");
   }
   for (double value : {0.0, -1.0, nan, inf}) {  // the separation passes' cube size
     PipelineOptions bad;
