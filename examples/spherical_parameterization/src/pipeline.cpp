@@ -474,6 +474,7 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
         const bool local_untangling =
             mesh.vertices.size() >= local_untangling_from && flips * 1000 <= mesh.faces.size();
         int stalled_levels = 0;
+        std::size_t failed_trial_at = 0;  // flipped faces at the last failed patch trial
         for (double eps : {1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5}) {
           uo.regularization = eps;
           int sweeps = 0;
@@ -497,7 +498,12 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
           }
           say("  untangling, eps " + fmt_g(eps) + ": " + std::to_string(sweeps) + " sweeps, " + std::to_string(flips) +
               " flipped faces left");
-          if (flips > 0 && flips <= 50) {
+          // After a failed trial, the next one waits until the sweeps have removed a quarter of the
+          // flipped faces: the same folds fail the same way (cones_60k: trials at 43, 21, 14, 14,
+          // 11, 10, 9, 9 and 9 flipped faces, all failed, 1.0-1.9 s each against 0.3 s of sweeps a
+          // level; now at 43, 21, 14 and 10). Waiting for half of them cost cones_120k its
+          // successful trial at 22 after a failed one at 31.
+          if (flips > 0 && flips <= 50 && (failed_trial_at == 0 || 4 * flips <= 3 * failed_trial_at)) {
             // a few stuck folds: the patch re-embedding (below) is far cheaper than more ε levels
             // (armadillo_43k: 2 flips left after ε = 0.1, then 8 more levels of 60 sweeps, 13 s).
             // A trial, kept only if it repairs every fold: a quarter of the chart-untangling work
@@ -510,6 +516,8 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
               s = std::move(trial);
               flips = 0;
               say("  untangling: the last flipped faces re-embedded in patches");
+            } else {
+              failed_trial_at = flips;
             }
           }
           // the same few folds after three levels: smaller ε will not open them (arm.off: 2 flips
