@@ -700,6 +700,17 @@ TEST(Stages, StretchReweightingOpensCrushedSpikes) {
   EXPECT_LE(r.flips, m.faces.size() / 200);
 }
 
+TEST(Stages, StretchReweightingStopsWhenStalledJustShortOfItsGoal) {
+  // Very long spikes: the reweighting lifts the crushed quantile to just below e^-4 within a few
+  // solves and no further; it stops there instead of running all 40.
+  const ReweightingOutcome r = reweighting_outcome(test::spiky_sphere(4, 4, 16.0, 0.15));
+  EXPECT_LT(r.plain_q, -6.0);
+  EXPECT_GT(r.reweighted_q, -6.0);
+  EXPECT_LT(r.reweighted_q, -3.0);  // still short of the goal: stopped by the stall, not by success
+  EXPECT_GE(r.reweightings, 5);     // a stall is judged over 4 reweightings
+  EXPECT_LE(r.reweightings, 12);
+}
+
 TEST(Stages, StretchReweightingOpensCrushedSpikesOnCholmodsPath) {
   // From cholmod_from_unknowns the systems go to CHOLMOD: the first in the chosen order, the
   // reweighted ones as the lower triangle of P A Pᵀ with their values written in place.
