@@ -261,9 +261,10 @@ struct DiracSet {
 DiracSet lattice_diracs(const Mesh& mesh, const std::vector<Vec3>& s, const std::vector<double>& targets,
                         const std::vector<int>& levels);
 
-/// Refinement levels (0 to `max_level`) that grade the Dirac masses: a face's sub-triangles are
-/// at most `ratio` times the smallest sub-triangle at any of its vertices. All 0 on a mesh whose
-/// neighbouring faces' targets are within `ratio` of each other.
+/// Refinement levels (0 to `max_level`) that grade the Dirac masses: each face is split until its
+/// sub-triangles' targets are at most `ratio` times the lightest vertex Dirac (a third of the
+/// sub-triangles around the vertex) within one ring of its corners, or it is at `max_level`.
+/// All 0 when no face is more than `ratio` times the lightest vertex Dirac near it.
 std::vector<int> graded_levels(const Mesh& mesh, const std::vector<double>& targets, double ratio, int max_level);
 
 }  // namespace sphparam
