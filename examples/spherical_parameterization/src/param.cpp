@@ -1667,29 +1667,45 @@ Mesh subdivide(const Mesh& mesh) {
   return out;
 }
 
+namespace {
+/// Per vertex, the lightest vertex Dirac within one ring of it, the faces split by `levels`
+/// (a vertex Dirac is a third of the sub-triangles' targets around it).
+std::vector<double> lightest_dirac_in_ring(const Mesh& mesh, const std::vector<double>& targets,
+                                           const std::vector<int>& levels) {
+  std::vector<double> mass(mesh.vertices.size(), 0.0);
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f)
+    for (int v : mesh.faces[f]) mass[u(v)] += targets[f] / std::ldexp(3.0, 2 * levels[f]);
+  std::vector<double> ring(mesh.vertices.size(), std::numeric_limits<double>::infinity());
+  for (const auto& t : mesh.faces) {
+    const double lightest = std::min({mass[u(t[0])], mass[u(t[1])], mass[u(t[2])]});
+    for (int v : t) ring[u(v)] = std::min(ring[u(v)], lightest);
+  }
+  return ring;
+}
+}  // namespace
+
+double largest_dirac_jump(const Mesh& mesh, const std::vector<double>& targets) {
+  const auto ring = lightest_dirac_in_ring(mesh, targets, std::vector<int>(mesh.faces.size(), 0));
+  double largest = 0;
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+    const auto& t = mesh.faces[f];
+    largest = std::max(largest, targets[f] / std::min({ring[u(t[0])], ring[u(t[1])], ring[u(t[2])]}));
+  }
+  return largest;
+}
+
 std::vector<int> graded_levels(const Mesh& mesh, const std::vector<double>& targets, double ratio, int max_level) {
-  const std::size_t nf = mesh.faces.size(), nv = mesh.vertices.size();
-  std::vector<int> levels(nf, 0);
-  std::vector<double> mass(nv), ring_min(nv);
-  auto sub_target = [&](std::size_t f) { return targets[f] / std::ldexp(1.0, 2 * levels[f]); };
+  std::vector<int> levels(mesh.faces.size(), 0);
   // A face's sub-triangles against the lightest vertex Dirac within one ring of its corners, not
   // against its neighbouring faces: a sliver next to large faces has vertices as heavy as theirs.
   // Raising a face's level lightens its corners, which may raise the next ring's levels: repeat
   // until nothing changes (levels only grow, up to max_level).
   for (bool changed = true; changed;) {
     changed = false;
-    std::fill(mass.begin(), mass.end(), 0.0);
-    for (std::size_t f = 0; f < nf; ++f)
-      for (int v : mesh.faces[f]) mass[u(v)] += sub_target(f) / 3;
-    std::fill(ring_min.begin(), ring_min.end(), std::numeric_limits<double>::infinity());
-    for (std::size_t f = 0; f < nf; ++f) {
+    const auto ring = lightest_dirac_in_ring(mesh, targets, levels);
+    for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
       const auto& t = mesh.faces[f];
-      const double lightest = std::min({mass[u(t[0])], mass[u(t[1])], mass[u(t[2])]});
-      for (int v : t) ring_min[u(v)] = std::min(ring_min[u(v)], lightest);
-    }
-    for (std::size_t f = 0; f < nf; ++f) {
-      const auto& t = mesh.faces[f];
-      const double bound = ratio * std::min({ring_min[u(t[0])], ring_min[u(t[1])], ring_min[u(t[2])]});
+      const double bound = ratio * std::min({ring[u(t[0])], ring[u(t[1])], ring[u(t[2])]});
       int level = levels[f];
       while (level < max_level && targets[f] / std::ldexp(1.0, 2 * level) > bound) ++level;
       if (level != levels[f]) levels[f] = level, changed = true;

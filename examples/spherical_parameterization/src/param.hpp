@@ -267,4 +267,8 @@ DiracSet lattice_diracs(const Mesh& mesh, const std::vector<Vec3>& s, const std:
 /// All 0 when no face is more than `ratio` times the lightest vertex Dirac near it.
 std::vector<int> graded_levels(const Mesh& mesh, const std::vector<double>& targets, double ratio, int max_level);
 
+/// The largest ratio of a face's target to the lightest vertex Dirac within one ring of its
+/// corners (unsplit faces): how far the Dirac masses jump across the mesh.
+double largest_dirac_jump(const Mesh& mesh, const std::vector<double>& targets);
+
 }  // namespace sphparam

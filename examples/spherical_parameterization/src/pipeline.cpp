@@ -427,15 +427,13 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
         // milder jumps: on armadillo_43k (26 times) a ratio of 8 split 116 faces and raised the final
         // area mean|d| 0.0196 -> 0.0207.
         DiracSet graded;
-        auto split = [](const std::vector<int>& levels) {
-          return static_cast<std::size_t>(std::count_if(levels.begin(), levels.end(), [](int l) { return l > 0; }));
-        };
         if (level == 0 && options.graded_dirac_ratio > 0 &&
-            split(graded_levels(mesh, targets, options.graded_diracs_from, 1)) > 0) {
+            largest_dirac_jump(mesh, targets) > options.graded_diracs_from) {
           const std::vector<int> levels = graded_levels(mesh, targets, options.graded_dirac_ratio, 3);
           const int deepest = *std::max_element(levels.begin(), levels.end());
           graded = lattice_diracs(mesh, separated, targets, levels);
-          R.ot.graded_faces = split(levels);
+          R.ot.graded_faces =
+              static_cast<std::size_t>(std::count_if(levels.begin(), levels.end(), [](int l) { return l > 0; }));
           say("graded Diracs: " + std::to_string(R.ot.graded_faces) + " faces split, up to 4^" +
               std::to_string(deepest) + " sub-triangles");
         }

@@ -1327,6 +1327,10 @@ TEST(Stages, GradedLevelsBoundEachFaceByTheLightestDiracNearIt) {
   }
   const auto levels = graded_levels(m, cap, ratio, 3);
   expect_levels(cap, levels);
+  // the pipeline's trigger: the cap's rim jumps by far more than the default 64, the sliver not
+  EXPECT_GT(largest_dirac_jump(m, cap), 64.0);
+  EXPECT_LT(largest_dirac_jump(m, sliver), 4.0);
+  EXPECT_LT(largest_dirac_jump(m, uniform), 4.0);
   for (int level : {1, 2, 3}) EXPECT_GT(std::count(levels.begin(), levels.end(), level), 0) << "level " << level;
   for (std::size_t f = 0; f < m.faces.size(); ++f)
     if (cap[f] == uniform[f]) {
