@@ -117,12 +117,19 @@ std::size_t untangle(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& 
 /// repaired are left as they were. Returns the number of flipped faces left.
 /// `patches` (optional) counts the flipped faces whose patch was re-embedded, and
 /// `chart_untangles` the patches that needed untangle_chart_patch.
-/// The chart untanglings of all patches together evaluate at most `untangling_work_per_face` faces
-/// per mesh face (a patch whose fixed ring leaves no room spends its whole share before it fails).
 inline constexpr std::size_t chart_untangling_work_per_face = 200;
-std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& s, int max_rings = 64,
-                                    int* patches = nullptr, int* chart_untangles = nullptr,
-                                    std::size_t untangling_work_per_face = chart_untangling_work_per_face);
+struct PatchRepairOptions {
+  int max_rings = 64;
+  /// The chart untanglings of all patches together evaluate at most this many faces per mesh
+  /// face (a patch whose fixed ring leaves no room spends its whole share before it fails).
+  std::size_t untangling_work_per_face = chart_untangling_work_per_face;
+  /// For a trial that is kept only if it repairs every fold: return as soon as one flipped face
+  /// has no repairing patch, instead of going on with the others.
+  bool stop_at_first_failure = false;
+};
+std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& s,
+                                    const PatchRepairOptions& options = {}, int* patches = nullptr,
+                                    int* chart_untangles = nullptr);
 
 /// A planar patch to untangle (the fallback of repair_flips_by_patches when Floater's embedding
 /// folds, i.e. when the fixed ring is far from convex): vertices 0 … free_count-1 move, the others

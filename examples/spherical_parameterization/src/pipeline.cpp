@@ -498,9 +498,9 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
               " flipped faces left");
           // After a failed trial, the next one waits until the sweeps have removed a quarter of the
           // flipped faces: the same folds fail the same way (cones_60k: trials at 43, 21, 14, 14,
-          // 11, 10, 9, 9 and 9 flipped faces, all failed, 1.0-1.9 s each against 0.3 s of sweeps a
-          // level; now at 43, 21, 14 and 10). Waiting for half of them cost cones_120k its
-          // successful trial at 22 after a failed one at 31.
+          // 11, 10, 9, 9 and 9 flipped faces, all failed; now at 43, 21, 14 and 10, each stopped
+          // at its first unrepaired face, 0.1-0.5 s against 0.3 s of sweeps a level). Waiting for
+          // half of them cost cones_120k its successful trial at 22 after a failed one at 31.
           if (flips > 0 && flips <= 50 && (failed_trial_at == 0 || 4 * flips <= 3 * failed_trial_at)) {
             // a few stuck folds: the patch re-embedding (below) is far cheaper than more ε levels
             // (armadillo_43k: 2 flips left after ε = 0.1, then 8 more levels of 60 sweeps, 13 s).
@@ -509,8 +509,11 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
             // failed chart untanglings spent the whole share on it before the next level's sweeps
             // opened it (untangling 0.27-0.28 s -> 0.22 s).
             std::vector<Vec3> trial = s;
-            if (repair_flips_by_patches(mesh, topo, trial, 64, &R.fallbacks.flip_patches, &R.fallbacks.chart_untangles,
-                                        chart_untangling_work_per_face / 4) == 0) {
+            PatchRepairOptions trial_options;
+            trial_options.untangling_work_per_face = chart_untangling_work_per_face / 4;
+            trial_options.stop_at_first_failure = true;
+            if (repair_flips_by_patches(mesh, topo, trial, trial_options, &R.fallbacks.flip_patches,
+                                        &R.fallbacks.chart_untangles) == 0) {
               s = std::move(trial);
               flips = 0;
               say("  untangling: the last flipped faces re-embedded in patches");
@@ -533,7 +536,7 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
         // re-embed a growing disk around each flipped face (positive weights), then repair its areas
         const std::size_t before = R.untangle_remaining;
         R.untangle_remaining =
-            repair_flips_by_patches(mesh, topo, s, 64, &R.fallbacks.flip_patches, &R.fallbacks.chart_untangles);
+            repair_flips_by_patches(mesh, topo, s, {}, &R.fallbacks.flip_patches, &R.fallbacks.chart_untangles);
         record("untangle_patches", since(t), s, std::to_string(before) + " flipped faces before");
         t = Clock::now();
       }

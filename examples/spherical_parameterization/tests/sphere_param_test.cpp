@@ -810,9 +810,11 @@ TEST(Stages, PatchRepairReembedsFoldedDisk) {
     // untangling work the next ring's Floater embedding repairs the fold, moving more vertices.
     auto with_work = s, without_work = s;
     int chart_untangles = 0;
-    EXPECT_EQ(repair_flips_by_patches(m, topo, with_work, 64, nullptr, &chart_untangles), 0u);
+    EXPECT_EQ(repair_flips_by_patches(m, topo, with_work, {}, nullptr, &chart_untangles), 0u);
     EXPECT_EQ(chart_untangles, 1);
-    EXPECT_EQ(repair_flips_by_patches(m, topo, without_work, 64, nullptr, nullptr, 0), 0u);
+    PatchRepairOptions no_work;
+    no_work.untangling_work_per_face = 0;
+    EXPECT_EQ(repair_flips_by_patches(m, topo, without_work, no_work), 0u);
     EXPECT_EQ(count_flips(m, without_work), 0u);
     std::size_t moved = 0, moved_without_work = 0;
     for (std::size_t v = 0; v < s.size(); ++v)
@@ -826,6 +828,52 @@ TEST(Stages, PatchRepairReembedsFoldedDisk) {
   for (std::size_t v = 0; v < s.size(); ++v)
     if (m.vertices[v].dot(m.vertices[centre]) < std::cos(0.8) && s[v] != damaged[v]) ++moved_far;
   EXPECT_EQ(moved_far, 0u);
+}
+
+TEST(Stages, PatchRepairTrialStopsAtTheFirstFoldItCannotRepair) {
+  const Mesh m = test::icosphere(4);
+  const Topology topo(m);
+  auto s = m.vertices;
+  // Fold A: a disk of three rings reversed through its centre, which no patch of one ring
+  // around one of its flipped faces repairs without the chart untangling.
+  const int centre = 100;
+  for (std::size_t v = 0; v < s.size(); ++v)
+    if (m.vertices[v].dot(m.vertices[centre]) > std::cos(0.2))
+      s[v] = (2 * m.vertices[centre] - m.vertices[v]).normalized();
+  std::size_t last_fold_a_face = 0;
+  for (std::size_t f = 0; f < m.faces.size(); ++f) {
+    const auto& t = m.faces[f];
+    const auto corner = [&](int k) { return s[static_cast<std::size_t>(t[static_cast<std::size_t>(k)])]; };
+    if (corner(0).dot(corner(1).cross(corner(2))) <= 0) last_fold_a_face = f;
+  }
+  // Fold B, far away and after every face of A in the mesh's order: one vertex pushed across a
+  // neighbour, which one ring of Floater's embedding puts back.
+  int pushed = -1;
+  for (std::size_t v = 0; v < s.size() && pushed < 0; ++v) {
+    bool after_a = m.vertices[v].dot(m.vertices[centre]) < std::cos(1.0);
+    for (int k = topo.face_offsets[v]; k < topo.face_offsets[v + 1]; ++k)
+      after_a = after_a && static_cast<std::size_t>(topo.vfaces[static_cast<std::size_t>(k)]) > last_fold_a_face;
+    if (after_a) pushed = static_cast<int>(v);
+  }
+  ASSERT_GE(pushed, 0);
+  const std::size_t flips_a = count_flips(m, s);
+  const auto p = static_cast<std::size_t>(pushed);
+  const auto across = static_cast<std::size_t>(topo.nbrs[static_cast<std::size_t>(topo.nbr_offsets[p])]);
+  s[p] = (2 * s[across] - s[p]).normalized();
+  const std::size_t flips = count_flips(m, s);
+  ASSERT_GT(flips_a, 0u);
+  ASSERT_GT(flips, flips_a);
+
+  PatchRepairOptions one_ring;
+  one_ring.max_rings = 1;
+  one_ring.untangling_work_per_face = 0;
+  auto go_on = s;
+  EXPECT_EQ(repair_flips_by_patches(m, topo, go_on, one_ring), flips_a);  // B repaired, A left
+  EXPECT_NE(go_on[p], s[p]);
+  one_ring.stop_at_first_failure = true;
+  auto stopped = s;
+  EXPECT_EQ(repair_flips_by_patches(m, topo, stopped, one_ring), flips);  // A failed first: nothing done
+  EXPECT_TRUE(stopped == s);
 }
 
 namespace {
