@@ -499,7 +499,7 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
           // After a failed trial, the next one waits until the sweeps have removed a quarter of the
           // flipped faces: the same folds fail the same way (cones_60k: trials at 43, 21, 14, 14,
           // 11, 10, 9, 9 and 9 flipped faces, all failed; now at 43, 21, 14 and 10, each stopped
-          // at its first unrepaired face, 0.1-0.5 s against 0.3 s of sweeps a level). Waiting for
+          // at its first unrepaired face, about 0.25 s against 0.26 s of sweeps a level). Waiting for
           // half of them cost cones_120k its successful trial at 22 after a failed one at 31.
           if (flips > 0 && flips <= 50 && (failed_trial_at == 0 || 4 * flips <= 3 * failed_trial_at)) {
             // a few stuck folds: the patch re-embedding (below) is far cheaper than more ε levels
