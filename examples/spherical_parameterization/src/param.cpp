@@ -892,6 +892,23 @@ std::size_t untangle(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& 
   return count_flips(mesh, s);
 }
 
+std::vector<char> near_flipped_faces(const Mesh& mesh, const Topology& topo, const std::vector<Vec3>& s, int rings) {
+  std::vector<char> near(s.size(), 0);
+  std::vector<int> front;
+  for (const auto& f : mesh.faces)
+    if (s[u(f[0])].dot(s[u(f[1])].cross(s[u(f[2])])) <= 0)
+      for (int v : f)
+        if (!near[u(v)]) near[u(v)] = 1, front.push_back(v);
+  for (int ring = 0; ring < rings; ++ring) {
+    std::vector<int> next;
+    for (int v : front)
+      for (int k = topo.nbr_offsets[u(v)]; k < topo.nbr_offsets[u(v) + 1]; ++k)
+        if (!near[u(topo.nbrs[u(k)])]) near[u(topo.nbrs[u(k)])] = 1, next.push_back(topo.nbrs[u(k)]);
+    front.swap(next);
+  }
+  return near;
+}
+
 // ------------------------------------------------------------------------ patch re-embedding
 // Garanzha et al.'s untangling energy (param.hpp); χ and the gradient are written out by hand.
 double untangling_energy(const ChartPatch& patch, const Eigen::MatrixX2d& x, double eps, Eigen::VectorXd& gradient,
@@ -1642,6 +1659,32 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
   result.energy_end = total_energy();
   if (result.sweeps == 0) result.energy_end = result.energy_start;
   return result;
+}
+
+std::size_t untangle_by_laplacian_rounds(const Mesh& mesh, const Topology& topo, const AreaOptimizer& optimizer,
+                                         std::vector<Vec3>& s, int max_rounds, int* rounds) {
+  std::size_t flips = count_flips(mesh, s);
+  for (int round = 0; round < max_rounds && flips > 0; ++round) {
+    if (rounds) ++*rounds;
+    untangle(mesh, topo, s, 30, false);  // monotone moves rearrange the stuck spots
+    OptimizeOptions uo;
+    uo.angle_weight = 0;
+    uo.max_sweeps = 100;
+    uo.activity_threshold = 1e-5;
+    uo.over_relaxation = 1;  // around stuck folds: local moves
+    for (double eps : {1e-2, 1e-3, 1e-4, 1e-5}) {
+      uo.regularization = eps;
+      // From the vertices within 4 rings of the folds (a move still wakes its neighbours), not
+      // from every vertex: the global area work is the final optimization's (cones_60k, the one
+      // shared or hard mesh that gets here: this round 0.93 s -> 0.02 s, final area mean|d|
+      // 0.0923 -> 0.0917).
+      uo.start_active = near_flipped_faces(mesh, topo, s, 4);
+      optimizer.run(s, uo);
+      if (count_flips(mesh, s) == 0) break;
+    }
+    flips = count_flips(mesh, s);
+  }
+  return flips;
 }
 
 Mesh subdivide(const Mesh& mesh) {

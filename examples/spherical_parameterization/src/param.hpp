@@ -109,6 +109,9 @@ std::size_t count_flips(const Mesh& mesh, const std::vector<Vec3>& s);
 std::size_t untangle(const Mesh& mesh, const Topology& topo, std::vector<Vec3>& s, int max_rounds = 400,
                      bool allow_free = true);
 
+/// One flag per vertex: within `rings` edges of a vertex of a flipped face (det <= 0).
+std::vector<char> near_flipped_faces(const Mesh& mesh, const Topology& topo, const std::vector<Vec3>& s, int rings);
+
 /// Repairs flipped faces by re-embedding a disk around each: the vertices within k rings of a
 /// flipped face are placed by a Floater (mean-value, positive-weight) embedding in a gnomonic
 /// chart, with the next ring fixed; k grows (1, 2, 3, 4, 6, …, up to `max_rings`) until no face of
@@ -253,6 +256,14 @@ class AreaOptimizer {
   const std::vector<double>& targets_;
   std::unique_ptr<Tables> tables_;
 };
+
+/// What is left of the folds after the regularised sweeps and the patches: up to `max_rounds`
+/// rounds, while faces are flipped, of monotone Laplacian moves (untangle without free moves)
+/// and then the regularised area energy (ε = 1e-2 down to 1e-5, 100 sweeps each at most) from
+/// the vertices within 4 rings of the folds. Returns the flipped faces left; `rounds`
+/// (optional) counts the rounds run.
+std::size_t untangle_by_laplacian_rounds(const Mesh& mesh, const Topology& topo, const AreaOptimizer& optimizer,
+                                         std::vector<Vec3>& s, int max_rounds, int* rounds = nullptr);
 
 /// 1-to-4 subdivision (edge midpoints): the refined mesh keeps the original vertices first.
 Mesh subdivide(const Mesh& mesh);

@@ -253,24 +253,6 @@ std::string coarse_transport(std::vector<Vec3>& s, const std::vector<double>& ma
 }
 #endif
 
-/// One flag per vertex: within `rings` edges of a vertex of a flipped face.
-std::vector<char> near_flipped_faces(const Mesh& mesh, const Topology& topo, const std::vector<Vec3>& s, int rings) {
-  std::vector<char> near(s.size(), 0);
-  std::vector<int> front;
-  for (const auto& f : mesh.faces)
-    if (s[u(f[0])].dot(s[u(f[1])].cross(s[u(f[2])])) <= 0)
-      for (int v : f)
-        if (!near[u(v)]) near[u(v)] = 1, front.push_back(v);
-  for (int ring = 0; ring < rings; ++ring) {
-    std::vector<int> next;
-    for (int v : front)
-      for (int k = topo.nbr_offsets[u(v)]; k < topo.nbr_offsets[u(v) + 1]; ++k)
-        if (!near[u(topo.nbrs[u(k)])]) near[u(topo.nbrs[u(k)])] = 1, next.push_back(topo.nbrs[u(k)]);
-    front.swap(next);
-  }
-  return near;
-}
-
 double min_edge_length(const Mesh& mesh, const std::vector<Vec3>& s) {
   double m = 1e300;
   for (const auto& f : mesh.faces)
@@ -552,22 +534,9 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
         ++R.fallbacks.ot_reruns;
         continue;
       }
-      for (int round = 0; round < 4 && R.untangle_remaining > 0; ++round) {
-        // monotone Laplacian moves rearrange the stuck spots, then the regularised energy again
-        ++R.fallbacks.laplacian_rounds;
-        untangle(mesh, topo, s, 30, false);
-        OptimizeOptions uo;
-        uo.angle_weight = 0;
-        uo.max_sweeps = 100;
-        uo.activity_threshold = 1e-5;
-        uo.over_relaxation = 1;  // around stuck folds: local moves
-        for (double eps : {1e-2, 1e-3, 1e-4, 1e-5}) {
-          uo.regularization = eps;
-          optimizer().run(s, uo);
-          if (count_flips(mesh, s) == 0) break;
-        }
-        R.untangle_remaining = count_flips(mesh, s);
-      }
+      if (R.untangle_remaining > 0)
+        R.untangle_remaining =
+            untangle_by_laplacian_rounds(mesh, topo, optimizer(), s, 4, &R.fallbacks.laplacian_rounds);
       if (R.untangle_remaining > 0) {
         ++R.fallbacks.free_smoothing;
         std::vector<Vec3> trial = s;  // free smoothing may destroy more than it repairs: keep the best

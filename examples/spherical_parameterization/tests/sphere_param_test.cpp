@@ -876,6 +876,45 @@ TEST(Stages, PatchRepairTrialStopsAtTheFirstFoldItCannotRepair) {
   EXPECT_TRUE(stopped == s);
 }
 
+TEST(Stages, LaplacianRoundsRepairAFoldAndLeaveTheRestInPlace) {
+  const Mesh m = test::icosphere(4);
+  const Topology topo(m);
+  // targets: the areas of the undamaged map, which is then the optimum away from the fold
+  std::vector<double> targets;
+  for (const auto& f : m.faces)
+    targets.push_back(signed_spherical_triangle_area(m.vertices[static_cast<std::size_t>(f[0])],
+                                                     m.vertices[static_cast<std::size_t>(f[1])],
+                                                     m.vertices[static_cast<std::size_t>(f[2])]));
+  const AreaOptimizer optimizer(m, topo, targets);
+  auto s = m.vertices;
+  const int centre = 100;
+  for (int k = topo.nbr_offsets[centre]; k < topo.nbr_offsets[centre + 1]; ++k) {  // a one-ring reversed
+    const auto v = static_cast<std::size_t>(topo.nbrs[static_cast<std::size_t>(k)]);
+    s[v] = (2 * m.vertices[centre] - m.vertices[v]).normalized();
+  }
+  ASSERT_GT(count_flips(m, s), 0u);
+  const auto damaged = s;
+  int rounds = 0;
+  EXPECT_EQ(untangle_by_laplacian_rounds(m, topo, optimizer, s, 4, &rounds), 0u);
+  EXPECT_EQ(count_flips(m, s), 0u);
+  EXPECT_GE(rounds, 1);
+  // the regularised sweeps start near the folds: the map's area error elsewhere is the final
+  // optimization's to correct, and vertices far from the damage keep their positions exactly
+  std::size_t moved_far = 0, moved = 0;
+  for (std::size_t v = 0; v < s.size(); ++v) {
+    moved += s[v] != damaged[v];
+    if (m.vertices[v].dot(m.vertices[centre]) < std::cos(1.0) && s[v] != damaged[v]) ++moved_far;
+  }
+  EXPECT_GT(moved, 0u);
+  EXPECT_EQ(moved_far, 0u);
+  // nothing flipped: nothing to do
+  int no_rounds = 0;
+  auto intact = m.vertices;
+  EXPECT_EQ(untangle_by_laplacian_rounds(m, topo, optimizer, intact, 4, &no_rounds), 0u);
+  EXPECT_EQ(no_rounds, 0);
+  EXPECT_TRUE(intact == m.vertices);
+}
+
 namespace {
 
 /// A fan: one free vertex (index 0) joined to a fixed boundary polygon (counter-clockwise),
