@@ -1207,7 +1207,7 @@ std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std:
     // A failed face seldom gets repaired by a later face's patch: of the trials on the shared
     // and hard meshes that repaired every fold, none had one. The other faces' patches, each
     // up to 63 rings with a sparse LU per ring count, would be spent on a trial already lost
-    // (cones_60k: 4 failed trials, 11-17 such faces each, 0.6-1.9 s each).
+    // (cones_60k: 4 failed trials with 5 to 17 such faces, 0.6-1.9 s each).
     if (!repaired && options.stop_at_first_failure) break;
   }
   return count_flips(mesh, s);
