@@ -1680,9 +1680,9 @@ std::size_t untangle_by_laplacian_rounds(const Mesh& mesh, const Topology& topo,
       // 0.0923 -> 0.0917).
       uo.start_active = near_flipped_faces(mesh, topo, s, 4);
       optimizer.run(s, uo);
-      if (count_flips(mesh, s) == 0) break;
+      flips = count_flips(mesh, s);
+      if (flips == 0) break;
     }
-    flips = count_flips(mesh, s);
   }
   return flips;
 }

@@ -787,21 +787,33 @@ TEST(Stages, CrushingIsJudgedOnTheLastMapWhenTheReweightingsRunOut) {
   EXPECT_EQ(r.metrics.flips, 0u);
 }
 
+namespace {
+
+/// The icosphere's own map with vertices reflected through vertex `centre`: its one-ring, or with
+/// `radius` > 0 every vertex within `radius` rad of it. The reversed order folds the disk so
+/// that no single-vertex move can repair it (the star kernels are empty).
+std::vector<Vec3> reversed_around(const Mesh& m, const Topology& topo, int centre, double radius = 0) {
+  auto s = m.vertices;
+  const Vec3& c = m.vertices[static_cast<std::size_t>(centre)];
+  auto reflect = [&](std::size_t v) { s[v] = (c - (m.vertices[v] - c)).normalized(); };
+  if (radius > 0) {
+    for (std::size_t v = 0; v < s.size(); ++v)
+      if (m.vertices[v].dot(c) > std::cos(radius)) reflect(v);
+  } else {
+    for (int k = topo.nbr_offsets[static_cast<std::size_t>(centre)];
+         k < topo.nbr_offsets[static_cast<std::size_t>(centre) + 1]; ++k)
+      reflect(static_cast<std::size_t>(topo.nbrs[static_cast<std::size_t>(k)]));
+  }
+  return s;
+}
+
+}  // namespace
+
 TEST(Stages, PatchRepairReembedsFoldedDisk) {
   const Mesh m = test::icosphere(4);
   const Topology topo(m);
-  auto s = m.vertices;
-  // Scramble a vertex and its one-ring: the ring's order is reversed through the centre, so no
-  // single-vertex move can repair it (the star kernels are empty).
   const int centre = 100;
-  std::vector<int> ring;
-  for (int k = topo.nbr_offsets[centre]; k < topo.nbr_offsets[centre + 1]; ++k)
-    ring.push_back(topo.nbrs[static_cast<std::size_t>(k)]);
-  for (int v : ring) {
-    const Vec3& c = m.vertices[centre];
-    const Vec3 d = m.vertices[static_cast<std::size_t>(v)] - c;
-    s[static_cast<std::size_t>(v)] = (c - d).normalized();  // point reflection through the centre
-  }
+  auto s = reversed_around(m, topo, centre);  // a one-ring reversed through its centre
   const std::size_t before = count_flips(m, s);
   ASSERT_GT(before, 0u);
   const auto damaged = s;
@@ -833,13 +845,10 @@ TEST(Stages, PatchRepairReembedsFoldedDisk) {
 TEST(Stages, PatchRepairTrialStopsAtTheFirstFoldItCannotRepair) {
   const Mesh m = test::icosphere(4);
   const Topology topo(m);
-  auto s = m.vertices;
   // Fold A: a disk of three rings reversed through its centre, which no patch of one ring
   // around one of its flipped faces repairs without the chart untangling.
   const int centre = 100;
-  for (std::size_t v = 0; v < s.size(); ++v)
-    if (m.vertices[v].dot(m.vertices[centre]) > std::cos(0.2))
-      s[v] = (2 * m.vertices[centre] - m.vertices[v]).normalized();
+  auto s = reversed_around(m, topo, centre, 0.2);
   std::size_t last_fold_a_face = 0;
   for (std::size_t f = 0; f < m.faces.size(); ++f) {
     const auto& t = m.faces[f];
@@ -886,12 +895,8 @@ TEST(Stages, LaplacianRoundsRepairAFoldAndLeaveTheRestInPlace) {
                                                      m.vertices[static_cast<std::size_t>(f[1])],
                                                      m.vertices[static_cast<std::size_t>(f[2])]));
   const AreaOptimizer optimizer(m, topo, targets);
-  auto s = m.vertices;
   const int centre = 100;
-  for (int k = topo.nbr_offsets[centre]; k < topo.nbr_offsets[centre + 1]; ++k) {  // a one-ring reversed
-    const auto v = static_cast<std::size_t>(topo.nbrs[static_cast<std::size_t>(k)]);
-    s[v] = (2 * m.vertices[centre] - m.vertices[v]).normalized();
-  }
+  auto s = reversed_around(m, topo, centre);
   ASSERT_GT(count_flips(m, s), 0u);
   const auto damaged = s;
   int rounds = 0;
