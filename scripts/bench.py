@@ -308,7 +308,7 @@ def param_table(rows):
 
 # ----------------------------------------------------------------------------------- hard shapes
 
-HARD_CASES = [(case, [25_000, 60_000, 120_000])
+HARD_CASES = [(case, [25_000, 60_000, 120_000, 150_000])
               for case in ("slivers", "folds", "spiky", "tubes", "capsule", "capsule40", "cones")]
 
 
