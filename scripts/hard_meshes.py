@@ -15,6 +15,7 @@ depend on SIZE, only its resolution does). Every case is deterministic (fixed se
            r = 1 + 2.5 sum_k exp(-(angle to spike k / 0.06)^2) on a fine icosphere (star-shaped,
            so embedded and genus 0)
   cones    a sphere with 8 long conical spikes: r = 1 + 13 cos(pi/2 angle/0.15) within 0.15 rad
+           (--cone-count, --cone-length and --cone-width change the 8, the 14 and the 0.15)
            of each spike's direction, 1 elsewhere (star-shaped): cones 14 radii long whose
            triangles are stretched about 90 times along them, so that few vertices resolve each
            spike (about 150 at 25k)
@@ -517,6 +518,11 @@ def main():
                    help='about this many vertices per mesh (default 25000 60000 120000)')
     p.add_argument('--seed', type=int, default=1)
     p.add_argument('--spikes', type=int, default=120, help='spikes of the spiky case (50-200)')
+    p.add_argument('--cone-count', type=int, default=8, help='spikes of the cones case (default 8)')
+    p.add_argument('--cone-length', type=float, default=14.0,
+                   help='length of the cones in sphere radii, tip to centre (default 14)')
+    p.add_argument('--cone-width', type=float, default=0.15,
+                   help='angular radius of each cone at its base, in radians (default 0.15)')
     args = p.parse_args()
     out = pathlib.Path(args.outdir)
     out.mkdir(parents=True, exist_ok=True)
@@ -524,6 +530,10 @@ def main():
         for size in args.sizes:
             if case == 'spiky':
                 v, f = spiky(size, args.seed, spikes=args.spikes)
+            elif case == 'cones':
+                if args.cone_count < 1 or not args.cone_length > 1 or not 0 < args.cone_width < 1:
+                    p.error('--cone-count must be >= 1, --cone-length > 1 and --cone-width in (0, 1)')
+                v, f = cones(size, args.seed, args.cone_count, args.cone_length, args.cone_width)
             else:
                 v, f = CASES[case](size, args.seed)
             v = np.asarray(v, dtype=float)

@@ -32,3 +32,26 @@ def test_cones_are_eight_long_spikes_of_few_vertices():
     tips = hard.spike_directions(8, 1)
     nearest = np.argmax((v[lifted] / r[lifted, None]) @ tips.T, axis=1)
     assert len(np.unique(nearest)) == 8
+
+
+def test_cone_options_set_the_count_length_and_width(tmp_path):
+    import subprocess
+    import sys
+    subprocess.run([sys.executable, str(SCRIPT), str(tmp_path), "--cases", "cones", "--sizes", "3000",
+                    "--cone-count", "4", "--cone-length", "10", "--cone-width", "0.3"], check=True,
+                   capture_output=True)
+    lines = (tmp_path / "cones_3k.off").read_text().split("\n")
+    nv, nf, _ = map(int, lines[1].split())
+    v = np.array([list(map(float, line.split())) for line in lines[2:2 + nv]])
+    r = np.linalg.norm(v, axis=1)
+    assert r.max() == pytest.approx(10.0, rel=0.05)
+    lifted = r > 1 + 1e-9
+    tips = hard.spike_directions(4, 1)
+    nearest = np.argmax((v[lifted] / r[lifted, None]) @ tips.T, axis=1)
+    assert len(np.unique(nearest)) == 4
+    # within 0.3 rad of a tip direction, not beyond
+    angle = np.arccos(np.clip(np.max((v[lifted] / r[lifted, None]) @ tips.T, axis=1), -1, 1))
+    assert angle.max() < 0.3 and angle.max() > 0.2
+    bad = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path), "--cases", "cones", "--sizes", "3000",
+                          "--cone-width", "2"], capture_output=True, text=True)
+    assert bad.returncode != 0 and "--cone-width" in bad.stderr

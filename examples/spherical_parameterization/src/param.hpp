@@ -59,8 +59,9 @@ std::vector<int> graph_nested_dissection(const Topology& topo, const std::vector
 /// outward. The mesh must be outward oriented. With `targets` (face target areas), the weights
 /// are then multiplied by the stretch (image area / target, clamped to e^±4; on the crushed
 /// side to e^-10 while the 0.5 % quantile is between e^-20 and e^-6, for a map that starts
-/// above e^-20) of the previous map, up to `max_reweightings` times, while more than 0.5% of the
-/// faces are crushed below e^-4 relative to the median stretch: this opens up the exponentially
+/// above e^-20) of the previous map, up to `max_reweightings` times, when more than 0.5% of the
+/// faces are crushed below e^-4 relative to the median stretch and then until that 0.5 % quantile
+/// is above e^-6 (the OT takes the rest): this opens up the exponentially
 /// crushed protrusions of harmonic maps (fingers, ears, arm.off's hand). The stretch is measured
 /// on the planar embedding (times the stereographic area factor): crushed faces there are 1e-12
 /// across, far below what points on the unit sphere resolve. With `crushed`, the reweighting stops early when

@@ -700,15 +700,14 @@ TEST(Stages, StretchReweightingOpensCrushedSpikes) {
   EXPECT_LE(r.flips, m.faces.size() / 200);
 }
 
-TEST(Stages, StretchReweightingStopsWhenStalledJustShortOfItsGoal) {
-  // Very long spikes: the reweighting lifts the crushed quantile to just below e^-4 within a few
-  // solves and no further; it stops there instead of running all 40.
+TEST(Stages, StretchReweightingStopsOnceAboveItsGoal) {
+  // Very long spikes: one reweighting lifts the crushed quantile above e^-6 in the plane, where it
+  // stops (the OT takes the rest); pushing on to e^-4 took 5 solves to gain e^0.1 on the sphere.
   const ReweightingOutcome r = reweighting_outcome(test::spiky_sphere(4, 4, 16.0, 0.15));
   EXPECT_LT(r.plain_q, -6.0);
   EXPECT_GT(r.reweighted_q, -6.0);
-  EXPECT_LT(r.reweighted_q, -3.0);  // still short of the goal: stopped by the stall, not by success
-  EXPECT_GE(r.reweightings, 5);     // a stall is judged over 4 reweightings
-  EXPECT_LE(r.reweightings, 12);
+  EXPECT_GE(r.reweightings, 1);
+  EXPECT_LE(r.reweightings, 2);
 }
 
 TEST(Stages, StretchReweightingOpensCrushedSpikesOnCholmodsPath) {
@@ -718,22 +717,23 @@ TEST(Stages, StretchReweightingOpensCrushedSpikesOnCholmodsPath) {
   ASSERT_GE(static_cast<long>(m.vertices.size()), cholmod_from_unknowns + 3);
   const ReweightingOutcome r = reweighting_outcome(m);
   EXPECT_LT(r.plain_q, -6.0);
-  EXPECT_GE(r.reweightings, 2);  // the in-place systems, not only the first
-  EXPECT_LE(r.reweightings, 8);  // 4 when written; a wrong system converges slowly or not at all
+  EXPECT_GE(r.reweightings, 1);  // a system written in place, not only the first
+  EXPECT_LE(r.reweightings, 8);  // 1 now, 4 when written; a wrong system converges slowly or not at all
   EXPECT_GT(r.reweighted_q, r.plain_q + 3.0);
   EXPECT_LE(r.flips, m.faces.size() / 200);
 }
 
 TEST(Stages, StretchReweightingOpensAModeratelyCrushedTubeInLargeSteps) {
   // A tube 15 radii long (1,610 vertices), crushed by e^-12.6 (0.5 % quantile): between e^-20
-  // and e^-6 the crushed side takes steps of up to e^-10 a reweighting (4 reweightings; 7 when
-  // it took e^-4, as the stretched side still does).
+  // and e^-6 the crushed side takes steps of up to e^-10 a reweighting, and e^-6 in the plane
+  // (e^-7.6 on the sphere after balancing) is reached in 2 reweightings (4 when it went on to
+  // e^-4, 7 when the crushed side took e^-4 steps, as the stretched side still does).
   const Mesh m = test::capsule(24, 15);
   const ReweightingOutcome r = reweighting_outcome(m);
   EXPECT_LT(r.plain_q, -10.0);  // moderately crushed, or the test says nothing
   EXPECT_GT(r.plain_q, -20.0);
-  EXPECT_LE(r.reweightings, 5);
-  EXPECT_GT(r.reweighted_q, -6.0);
+  EXPECT_LE(r.reweightings, 3);
+  EXPECT_GT(r.reweighted_q, r.plain_q + 4.0);
   EXPECT_LE(r.flips, m.faces.size() / 200);
 }
 
@@ -1431,10 +1431,10 @@ TEST(Stages, GradedLevelsBoundEachFaceByTheLightestDiracNearIt) {
 }
 
 TEST(Pipeline, GradedDiracsSpareSpikesTheRerunOnFinerDiracs) {
-  // 4 spikes 14 radii long: each one's faces are 50-100 times the lightest Dirac beside its
+  // 4 spikes 22 radii long: each one's faces are far heavier than the lightest Dirac beside its
   // base. Vertex Diracs fold the faces around the bases past what the untangling opens, and the
   // OT and untangling run again on 4 times the Diracs; graded ones leave no fold there.
-  const Mesh m = test::spiky_sphere(5, 4, 14.0, 0.2);
+  const Mesh m = test::spiky_sphere(4, 4, 22.0, 0.2);
   PipelineOptions plain;
   plain.graded_dirac_ratio = 0;
   const auto with = run_parameterization(m, ReadInfo{}, PipelineOptions{}, {}, false, "generated");
@@ -1657,7 +1657,7 @@ TEST(Report, FallbackActivationsAreCounted) {
   EXPECT_EQ(plain["fallbacks"]["total"].get<int>(), 0);
   PipelineOptions ungraded;
   ungraded.graded_dirac_ratio = 0;
-  const auto spiky = report_of(test::spiky_sphere(5, 6, 10.0, 0.2), ungraded);
+  const auto spiky = report_of(test::spiky_sphere(4, 4, 22.0, 0.2), ungraded);
   const auto& counts = spiky["fallbacks"];
   int sum = 0;
   for (const char* key : {"hierarchical_initial_map", "separation_passes", "flip_patches", "chart_untangles",
