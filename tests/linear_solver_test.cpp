@@ -459,3 +459,23 @@ TEST(NewtonGrowth, LimitedToFourTimesTheMassWhileTheStepStillDescends) {
   const Eigen::VectorXd near = Eigen::VectorXd::LinSpaced(400, -0.99, 3.0);
   EXPECT_EQ(limit_newton_growth(near, masses, true), near);
 }
+
+// The line search's floor: ε₀ for a cell at 2ε₀ or more; half the current mass for a cell below
+// that, never below ε₀/8; a NaN mass never passes.
+TEST(LineSearchFloor, CellsNearEpsilonZeroMayHalveDownToAnEighthOfIt) {
+  using sdot::detail::above_mass_floor;
+  const double epsilon0 = 1.0;
+  const Eigen::VectorXd current = (Eigen::VectorXd(4) << 10.0, 2.0, 1.03, 0.2).finished();
+  Eigen::VectorXd trial = (Eigen::VectorXd(4) << 1.0, 1.0, 0.6, 0.125).finished();
+  EXPECT_TRUE(above_mass_floor(trial, current, epsilon0));
+  // KMT's rule alone (every cell ≥ ε₀) rejects this trial: the third cell is at 0.6ε₀.
+  EXPECT_LT(trial.minCoeff(), epsilon0);
+  trial[0] = 0.99;  // a cell at 10ε₀ must stay above ε₀
+  EXPECT_FALSE(above_mass_floor(trial, current, epsilon0));
+  trial[0] = 1.0, trial[2] = 0.5;  // below half of 1.03
+  EXPECT_FALSE(above_mass_floor(trial, current, epsilon0));
+  trial[2] = 0.6, trial[3] = 0.1;  // below ε₀/8, although half of 0.2 would allow it
+  EXPECT_FALSE(above_mass_floor(trial, current, epsilon0));
+  trial[3] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(above_mass_floor(trial, current, epsilon0));
+}
