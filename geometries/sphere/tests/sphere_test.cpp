@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <cmath>
 #include <map>
 #include <numbers>
 #include <random>
@@ -398,6 +399,30 @@ TEST(SphereSolver, FiveThousandSitesWithMassesVarying100x) {
   ASSERT_TRUE(result.summary.converged()) << result.summary.message;
   EXPECT_LE(result.summary.max_relative_error, 1e-10);
   EXPECT_NEAR(result.masses.sum(), 4 * pi, 1e-10);
+}
+
+// 1000 of 3000 sites crushed into a cap 0.05 rad wide, equal masses: from the Voronoi start the
+// first steps are 2⁻⁸ to 2⁻², and once the cluster has spread, steps of ¾ pass where the full
+// step does not. Every step is 1, ¾ or a power of 2, and each solve converges.
+TEST(SphereSolver, ThreeQuarterStepsAreTriedBetweenTheFullStepAndHalfOfIt) {
+  int three_quarter_steps = 0;
+  for (unsigned seed = 1; seed <= 6; ++seed) {
+    std::mt19937_64 random(seed);
+    std::vector<Vec> sites(2000);
+    for (auto& s : sites) s = random_unit(random);
+    while (sites.size() < 3000)
+      if (const Vec v = random_unit(random); v.z() > std::cos(0.05)) sites.push_back(v);
+    const Eigen::VectorXd masses = Eigen::VectorXd::Ones(3000);
+    const auto result = solve(Sphere(), UniformDensity{}, std::span(sites), masses, Options{});
+    ASSERT_TRUE(result.summary.converged()) << "seed " << seed << ": " << result.summary.message;
+    for (std::size_t k = 1; k < result.summary.history.size(); ++k) {
+      const double step = result.summary.history[k].step;
+      int exponent = 0;
+      EXPECT_TRUE(step == 0.75 || std::frexp(step, &exponent) == 0.5) << "seed " << seed << ", step " << step;
+      three_quarter_steps += step == 0.75;
+    }
+  }
+  EXPECT_GE(three_quarter_steps, 2);
 }
 
 TEST(SphereSolver, CoCircularSitesHaveAnExactHessian) {

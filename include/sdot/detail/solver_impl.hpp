@@ -717,8 +717,16 @@ sdot::Result<typename G::Point> sdot::detail::solve_in_order(
       }
 
       bool accepted = false;
+      // Trial steps 1, ¾, ½, ¼, …: KMT's halvings with ¾ between the first two, whose test
+      // (1 − ¾/2) is KMT's at that length, so their convergence argument is unchanged. Why: far from
+      // the solution the full step often empties a cell where ¾ does not, and ½ only halves
+      // the error (55 spherical maps of sdot-sphere-param: 327 Newton iterations in all → 291,
+      // 31 meshes fewer, 1 more; cones_60k 10 → 7). Not near the precision floor, where each
+      // trial is a diagram for round-off.
+      const bool three_quarters = error.max_relative > options.precision_floor_threshold;
       double step = 1;
-      for (int halving = 0; halving <= options.max_step_halvings; ++halving, step /= 2) {
+      for (int halving = 0; halving <= options.max_step_halvings;
+           step = three_quarters && step == 1 ? 0.75 : (++halving, std::ldexp(1.0, -halving))) {
         // Near the precision floor a direction that does not descend at step 2⁻¹⁰ gives nothing
         // but round-off below it, and every halving costs a diagram (the plane's floor test: 57
         // diagrams with the 40 halvings, 27 with 10).
