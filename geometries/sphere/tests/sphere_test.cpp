@@ -402,8 +402,9 @@ TEST(SphereSolver, FiveThousandSitesWithMassesVarying100x) {
 }
 
 // 1000 of 3000 sites crushed into a cap 0.05 rad wide, equal masses: from the Voronoi start the
-// first steps are 2⁻⁸ to 2⁻², and once the cluster has spread, steps of ¾ pass where the full
-// step does not. Every step is 1, ¾ or a power of 2, and each solve converges.
+// first steps are short, and once the cluster has spread, steps of ¾ pass where the full step
+// does not (the test fails without the ¾ trial). Every step is 1, ¾ or a power of 2, and each
+// solve converges.
 TEST(SphereSolver, ThreeQuarterStepsAreTriedBetweenTheFullStepAndHalfOfIt) {
   int three_quarter_steps = 0;
   for (unsigned seed = 1; seed <= 6; ++seed) {
