@@ -1148,7 +1148,7 @@ std::size_t repair_flips_by_patches(const Mesh& mesh, const Topology& topo, std:
         repaired = lu.info() == Eigen::Success && x.allFinite() && try_positions(x);
         repaired_in_pass = repaired_in_pass || repaired;
       }
-      if (!repaired) {
+      if (!repaired && rings <= options.chart_untangling_max_rings) {
         // Floater's embedding folds when the fixed ring is far from convex (arm.off: at every
         // ring count); the untangling energy starts from the current, folded, positions instead
         // and keeps the mesh's triangle shapes as its reference.

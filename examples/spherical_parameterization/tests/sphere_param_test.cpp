@@ -832,6 +832,15 @@ TEST(Stages, PatchRepairReembedsFoldedDisk) {
     for (std::size_t v = 0; v < s.size(); ++v)
       moved += with_work[v] != s[v], moved_without_work += without_work[v] != s[v];
     EXPECT_GT(moved_without_work, moved);
+    // No chart untangling at any ring count: Floater's embedding of the next ring repairs it, as
+    // without untangling work, and no patch is counted as untangled.
+    auto floater_only = s;
+    int floater_only_untangles = 0;
+    PatchRepairOptions no_chart;
+    no_chart.chart_untangling_max_rings = 0;
+    EXPECT_EQ(repair_flips_by_patches(m, topo, floater_only, no_chart, nullptr, &floater_only_untangles), 0u);
+    EXPECT_EQ(floater_only_untangles, 0);
+    EXPECT_TRUE(floater_only == without_work);
   }
   EXPECT_EQ(repair_flips_by_patches(m, topo, s), 0u);
   EXPECT_EQ(count_flips(m, s), 0u);
