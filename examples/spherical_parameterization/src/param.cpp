@@ -1480,6 +1480,14 @@ int sweep_limit(const OptimizeOptions& options) {
   return options.angle_weight > default_angle_weight ? 2000 : 200;
 }
 
+double area_first_visit_limit(const OptimizeOptions& options) {
+  const bool automatic_limits = options.max_sweeps < 0 && options.max_visits_per_vertex < 0;
+  if (!(options.area_first_visits > 0 && options.angle_weight > 0 && options.regularization == 0 && automatic_limits &&
+        options.angle_weight <= default_angle_weight))
+    return 0;
+  return std::min(options.area_first_visits, visit_limit(options));
+}
+
 double visit_limit(const OptimizeOptions& options) {
   if (options.max_visits_per_vertex >= 0) return options.max_visits_per_vertex;
   if (options.max_sweeps >= 0 || options.angle_weight > default_angle_weight)
@@ -1573,9 +1581,40 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
     throw std::invalid_argument("max_visits_per_vertex: must be a number, got NaN");
   if (!(options.over_relaxation > 0 && options.over_relaxation < 2))
     throw std::invalid_argument("over_relaxation: must be in (0, 2), got " + std::to_string(options.over_relaxation));
+  if (!(std::isfinite(options.area_first_visits) && options.area_first_visits >= 0))
+    throw std::invalid_argument("area_first_visits: must be a finite number >= 0, got " +
+                                std::to_string(options.area_first_visits));
   if (s.size() != mesh_.vertices.size())
     throw std::invalid_argument("positions: " + std::to_string(s.size()) + " for a mesh of " +
                                 std::to_string(mesh_.vertices.size()) + " vertices");
+  if (area_first_visit_limit(options) > 0) {
+    const double visits_per_vertex = visit_limit(options);
+    const auto nv = static_cast<double>(s.size());
+    OptimizeOptions area_only = options;
+    area_only.angle_weight = 0;
+    area_only.max_sweeps = sweep_limit(options) / 2;  // a long tail of few active vertices leaves the rest
+    area_only.max_visits_per_vertex = area_first_visit_limit(options);
+    area_only.area_first_visits = 0;
+    const auto start = std::chrono::steady_clock::now();
+    const OptimizeResult first = run_once(s, area_only);
+    OptimizeOptions with_angles = options;
+    with_angles.max_sweeps = sweep_limit(options) - first.sweeps;
+    with_angles.max_visits_per_vertex = std::max(0.0, visits_per_vertex - static_cast<double>(first.visits) / nv);
+    with_angles.time_budget_s =
+        options.time_budget_s - std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    with_angles.start_active.clear();
+    with_angles.area_first_visits = 0;
+    OptimizeResult second = run_once(s, with_angles);
+    second.sweeps += first.sweeps;
+    second.visits += first.visits;
+    second.energy_start = first.energy_start;
+    if (second.sweeps == first.sweeps) second.over_relaxation = first.over_relaxation;
+    return second;
+  }
+  return run_once(s, options);
+}
+
+OptimizeResult AreaOptimizer::run_once(std::vector<Vec3>& s, const OptimizeOptions& options) const {
   const Mesh& mesh = mesh_;
   const std::vector<double>& targets = targets_;
   const Tables& t = *tables_;

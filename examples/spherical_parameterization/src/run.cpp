@@ -139,6 +139,8 @@ RunResult run_parameterization(Mesh&& raw, const ReadInfo& info, PipelineOptions
       {"sweep_limit", sweep_limit(options.optimizer)},
       // null: no limit
       {"visit_limit_per_vertex", std::isfinite(visits_per_vertex) ? json(visits_per_vertex) : json(nullptr)},
+      // of those, the first run's at angle weight 0 (0: none)
+      {"area_first_visits_per_vertex", area_first_visit_limit(options.optimizer)},
       {"over_relaxation", R.optimizer.over_relaxation},
       {"sweeps", R.optimizer.sweeps},
       {"visits", R.optimizer.visits},
