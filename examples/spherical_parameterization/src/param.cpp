@@ -1481,11 +1481,12 @@ int sweep_limit(const OptimizeOptions& options) {
 }
 
 double area_first_visit_limit(const OptimizeOptions& options) {
-  const bool automatic_limits = options.max_sweeps < 0 && options.max_visits_per_vertex < 0;
-  if (!(options.area_first_visits > 0 && options.angle_weight > 0 && options.regularization == 0 && automatic_limits &&
-        options.angle_weight <= default_angle_weight))
+  // only under the automatic visit limit: finite exactly for automatic limits and λ up to the default
+  const double automatic = options.max_visits_per_vertex < 0 ? visit_limit(options) : 0;
+  if (!(options.area_first_visits > 0 && options.angle_weight > 0 && options.regularization == 0 &&
+        std::isfinite(automatic)))
     return 0;
-  return std::min(options.area_first_visits, visit_limit(options));
+  return std::min(options.area_first_visits, automatic);
 }
 
 double visit_limit(const OptimizeOptions& options) {
@@ -1587,13 +1588,13 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
   if (s.size() != mesh_.vertices.size())
     throw std::invalid_argument("positions: " + std::to_string(s.size()) + " for a mesh of " +
                                 std::to_string(mesh_.vertices.size()) + " vertices");
-  if (area_first_visit_limit(options) > 0) {
+  if (const double area_first = area_first_visit_limit(options); area_first > 0) {
     const double visits_per_vertex = visit_limit(options);
     const auto nv = static_cast<double>(s.size());
     OptimizeOptions area_only = options;
     area_only.angle_weight = 0;
     area_only.max_sweeps = sweep_limit(options) / 2;  // a long tail of few active vertices leaves the rest
-    area_only.max_visits_per_vertex = area_first_visit_limit(options);
+    area_only.max_visits_per_vertex = area_first;
     area_only.area_first_visits = 0;
     const auto start = std::chrono::steady_clock::now();
     const OptimizeResult first = run_once(s, area_only);
@@ -1608,7 +1609,6 @@ OptimizeResult AreaOptimizer::run(std::vector<Vec3>& s, const OptimizeOptions& o
     second.sweeps += first.sweeps;
     second.visits += first.visits;
     second.energy_start = first.energy_start;
-    if (second.sweeps == first.sweeps) second.over_relaxation = first.over_relaxation;
     return second;
   }
   return run_once(s, options);
