@@ -211,11 +211,11 @@ struct OptimizeOptions {
   /// default_angle_weight): this many of the visit limit's visits per vertex go to a first run
   /// at λ = 0 (at most half the sweep limit), and the rest to the run with the MIPS term. The
   /// area term alone moves the map nearer its area optimum, and the MIPS term's run keeps most
-  /// of it: a lower final area mean|d| on 33 of the 16 shared, 18 hard and 5 cones meshes
-  /// (brain_48k 0.0056 → 0.0049, cones_150k 0.0857 → 0.0841), higher on 5 (arm 0.0143 → 0.0146),
-  /// for more time where the MIPS run used to stop early (the stage 6.93 s → 8.72 s on all 39).
+  /// of it (8 against none: brain_48k 0.0056 → 0.0049, cones_150k 0.0857 → 0.0841). 16 rather
+  /// than 8 takes over the area work that the untangling's ε levels after the first no longer do
+  /// (pipeline.cpp, step 4): see docs/spherical_parameterization.md for both measured together.
   /// 0: off.
-  double area_first_visits = 8;
+  double area_first_visits = 16;
 };
 /// The sweep limit of `options`: max_sweeps when ≥ 0; otherwise 200 up to the default angle
 /// weight, and 2000 above it. A large λ moves the map from area-preserving towards conformal,

@@ -94,6 +94,14 @@ struct OtRecord {
   std::vector<double> error_history;
 };
 
+/// What the regularised untangling did (all 0 when the OT map had no flipped face).
+struct UntanglingRecord {
+  int levels = 0;          ///< ε levels run (0.1, 0.03, 0.01, …)
+  int global_sweeps = 0;   ///< sweeps that started from every vertex
+  int local_sweeps = 0;    ///< sweeps that started near the flipped faces
+  std::size_t visits = 0;  ///< vertex updates tried in all of them
+};
+
 /// How often each fallback path ran: each is a repair of what the main path left, so on an
 /// ordinary mesh they are all 0.
 struct FallbackCounts {
@@ -116,6 +124,7 @@ struct PipelineResult {
   std::vector<StageRecord> stages;
   OtRecord ot;
   std::size_t untangle_remaining = 0;
+  UntanglingRecord untangling;
   OptimizeResult optimizer;
   FallbackCounts fallbacks;
   HierarchyInfo hierarchy;                  ///< when fallbacks.hierarchical_initial_map

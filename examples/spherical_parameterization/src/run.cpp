@@ -147,6 +147,10 @@ RunResult run_parameterization(Mesh&& raw, const ReadInfo& info, PipelineOptions
       {"energy_start", R.optimizer.energy_start},
       {"energy_end", R.optimizer.energy_end},
       {"untangle_remaining_flips", R.untangle_remaining}};
+  report["untangling"] = {{"levels", R.untangling.levels},
+                          {"global_sweeps", R.untangling.global_sweeps},
+                          {"local_sweeps", R.untangling.local_sweeps},
+                          {"visits", R.untangling.visits}};
   const FallbackCounts& fb = R.fallbacks;
   report["fallbacks"] = {{"total", fb.total()},
                          {"hierarchical_initial_map", fb.hierarchical_initial_map},
