@@ -470,7 +470,7 @@ static PipelineResult map_mesh(const Mesh& mesh, const PipelineOptions& options)
             // 0.0149 → 0.0130). Over-relaxing chunk 0 overshoots the maps OT leaves nearly
             // converged (igea_134k: final area mean|d| 0.0044 → 0.0058 with ω = 1.6).
             // Only the first ε level sweeps globally. The levels after it open the last folds
-            // as well from their neighbourhoods (cones_120k: 36 → 15 → 12 → 10 flipped faces
+            // as well from their neighbourhoods (cones_120k: 36 → 15 → 12-13 → 10-11 flipped faces
             // after ε = 0.03, 0.01 and 0.003 both ways); their global chunks did area work, at
             // 0.6 s a level, that the area-first run of step 5 does for less (with its 16 visits:
             // cones_120k's untangling 3.0 s → 1.8 s, final area mean|d| 0.0841 → 0.0830).
